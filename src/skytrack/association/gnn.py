@@ -1,0 +1,80 @@
+"""Global nearest-neighbour assignment over sparse gated pairs.
+
+Gated pairs form a bipartite graph between tracks and plots; its connected components
+(``scipy.sparse.csgraph.connected_components``) are independent assignment problems.
+Components made of one track and one plot are assigned directly (vectorised, the
+common case in sparse air traffic); every larger component is solved with
+``scipy.optimize.linear_sum_assignment`` on the cost matrix augmented with a
+"leave the track unassigned" option of cost ``miss_cost`` per track (a plot left
+unassigned costs nothing: it goes on to start a track or is clutter), so that a track is
+only given a plot when that lowers the total cost.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+#: cost of a forbidden (non-gated) cell inside a cluster; finite so LSA always succeeds
+_FORBIDDEN = 1e18
+
+
+def assign_gnn(
+    track_index: np.ndarray,
+    plot_index: np.ndarray,
+    cost: np.ndarray,
+    n_tracks: int,
+    n_plots: int,
+    miss_cost: float | np.ndarray,
+) -> np.ndarray:
+    """Choose at most one plot per track and one track per plot, minimising total cost.
+
+    ``track_index``, ``plot_index`` and ``cost`` describe the gated pairs (one entry per
+    pair, at most one entry per (track, plot)).  ``miss_cost`` is the cost of leaving a
+    track (scalar or ``[n_tracks]``) or a plot unassigned.  Returns the indices (into the
+    pair arrays) of the chosen pairs.
+    """
+    n_pairs = len(track_index)
+    if n_pairs == 0:
+        return np.zeros(0, dtype=np.intp)
+    miss = np.broadcast_to(np.asarray(miss_cost, dtype=float), (n_tracks,))
+    graph = coo_matrix(
+        (np.ones(n_pairs), (track_index, n_tracks + plot_index)),
+        shape=(n_tracks + n_plots, n_tracks + n_plots),
+    )
+    _, labels = connected_components(graph, directed=False)
+    pair_label = labels[track_index]
+    # pairs per component: a component with exactly one pair is one track and one plot
+    order = np.argsort(pair_label, kind="stable")
+    sorted_labels = pair_label[order]
+    starts = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]])
+    sizes = np.diff(np.r_[starts, n_pairs])
+    single = order[starts[sizes == 1]]
+    # a lone pair is taken when it is cheaper than leaving its track unassigned
+    chosen = [single[cost[single] <= miss[track_index[single]]]]
+    for start, size in zip(starts[sizes > 1], sizes[sizes > 1]):
+        pairs = order[start : start + size]
+        chosen.append(_solve_cluster(pairs, track_index[pairs], plot_index[pairs], cost[pairs], miss))
+    return np.sort(np.concatenate(chosen))
+
+
+def _solve_cluster(pairs, tracks, plots, costs, miss) -> np.ndarray:
+    """Optimal assignment of one cluster with explicit non-assignment options."""
+    track_ids, t_local = np.unique(tracks, return_inverse=True)
+    plot_ids, p_local = np.unique(plots, return_inverse=True)
+    nt, npl = len(track_ids), len(plot_ids)
+    size = nt + npl
+    matrix = np.full((size, size), _FORBIDDEN)
+    matrix[t_local, p_local] = costs
+    # track i left unassigned: column npl + i; plot j left unassigned: row nt + j
+    matrix[np.arange(nt), npl + np.arange(nt)] = miss[track_ids]
+    matrix[nt + np.arange(npl), np.arange(npl)] = 0.0
+    matrix[nt:, npl:] = 0.0
+    rows, cols = linear_sum_assignment(matrix)
+    real = (rows < nt) & (cols < npl)
+    lookup = np.full((nt, npl), -1, dtype=np.intp)
+    lookup[t_local, p_local] = pairs
+    picked = lookup[rows[real], cols[real]]
+    return picked[picked >= 0]
