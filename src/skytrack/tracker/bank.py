@@ -25,6 +25,8 @@ _NUMERIC_FIELDS = {
     "confirmed_at": np.float64,
     "alt_m": np.float64,  # last Mode C altitude (m), NaN if none
     "z_hint": np.float64,  # ENU z of the last plot (2-D tracking, for lat/lon)
+    "nis_avg": np.float64,  # smoothed normalised innovation squared (manoeuvre detector)
+    "manoeuvring": np.bool_,  # psi of spec 000 S3: the manoeuvre process noise is in use
 }
 _OBJECT_FIELDS = ("mode3a", "icao24", "iff")
 

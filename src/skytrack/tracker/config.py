@@ -15,9 +15,12 @@ INIT_METHODS = ("one-point", "two-point")
 class TrackerConfig:
     """All tracker settings, with defaults suited to en-route surveillance radars.
 
-    Motion model: ``model`` is ``"singer"`` (per-axis Singer, spec 000; ``singer_tau_s``,
+    Motion model: ``model`` is ``"cv"`` (white-noise acceleration of PSD ``cv_q``, the
+    default) or ``"singer"`` (per-axis Singer, spec 000; ``singer_tau_s``,
     ``singer_sigma_a``, ``discretization`` "exact" by default as spec 000 R2 asks for
-    varying step lengths) or ``"cv"`` (white-noise acceleration of PSD ``cv_q``).
+    varying step lengths).  The defaults (quiet CV plus the manoeuvre switch below) were
+    chosen on simulated en-route traffic with 2-3 g turns seen by a 4 s radar; see
+    ``docs/tracker.md`` for the measured comparison with Singer.
 
     Gating: ``p_gate`` is the gate probability P_G; the threshold is the chi-square
     quantile for the number of measured components (spec 000 R7), or ``gate_threshold``
@@ -33,16 +36,28 @@ class TrackerConfig:
     after the second plot by the two-point difference (position of the second plot,
     velocity from the difference, covariances from both plots' noise).
 
+    Manoeuvre switch (spec 000 S3, the indicator psi): every track carries a flag psi.
+    While psi = 0 the process noise is the model's; while psi = 1 it is multiplied by
+    ``manoeuvre_q_scale``.  psi is set when the exponentially smoothed normalised
+    innovation squared (NIS per component, smoothing weight ``manoeuvre_memory`` on the
+    past) exceeds ``manoeuvre_on_nis`` and cleared when it falls below
+    ``manoeuvre_off_nis``; ``manoeuvre_q_scale = 1`` switches the mechanism off.  The flag
+    is a function of past innovations only, as Theorem 1 (2a) requires.
+
     Geometry: ``tracking_dim`` 2 tracks in the horizontal plane (2-D radars, slant range
     projected with the Mode C altitude or ``default_altitude_m``), 3 in space; ``None``
     picks 3 when every radar is 3-D and 2 otherwise.
     """
 
-    model: str = "singer"
+    model: str = "cv"
     singer_tau_s: float = 20.0
     singer_sigma_a: float = 4.0
     discretization: str = "exact"
-    cv_q: float = 10.0
+    cv_q: float = 0.5
+    manoeuvre_q_scale: float = 3000.0
+    manoeuvre_on_nis: float = 2.0
+    manoeuvre_off_nis: float = 1.2
+    manoeuvre_memory: float = 0.3
     p_gate: float = 0.9995
     gate_threshold: float | None = None
     confirm_m: int = 3
@@ -88,6 +103,12 @@ class TrackerConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value}")
+        if not (math.isfinite(self.manoeuvre_q_scale) and self.manoeuvre_q_scale >= 1.0):
+            raise ValueError(f"manoeuvre_q_scale must be >= 1, got {self.manoeuvre_q_scale}")
+        if not 0.0 <= self.manoeuvre_memory < 1.0:
+            raise ValueError(f"manoeuvre_memory must be in [0, 1), got {self.manoeuvre_memory}")
+        if not 0.0 < self.manoeuvre_off_nis <= self.manoeuvre_on_nis:
+            raise ValueError("need 0 < manoeuvre_off_nis <= manoeuvre_on_nis")
         if self.sectors_per_scan is not None and self.sectors_per_scan < 1:
             raise ValueError(f"sectors_per_scan must be >= 1, got {self.sectors_per_scan}")
         if self.output_interval_s is not None and not self.output_interval_s > 0:

@@ -222,13 +222,24 @@ class Tracker:
         plot_used = np.zeros(len(plots), dtype=bool)
         if n_tracks:
             t_ref, expected = self._expectations(s, w_start, w_end)
-            for stage in (CONFIRMED, TENTATIVE):
-                tracks = np.flatnonzero(self.bank.status[:n_tracks] == stage)
+            status = self.bank.status[:n_tracks]
+            confirmed = status == CONFIRMED
+            # confirmed tracks first; then confirmed quiet tracks that found nothing try the
+            # manoeuvre gate (psi = 1); then tentative tracks on what is left
+            stages = (
+                (lambda: confirmed, False),
+                (lambda: confirmed & expected & ~hit & ~self.bank.manoeuvring[:n_tracks], True),
+                (lambda: status == TENTATIVE, False),
+            )
+            for members, manoeuvre in stages:
+                if manoeuvre and cfg.manoeuvre_q_scale == 1.0:
+                    continue
+                tracks = np.flatnonzero(members())
                 free = np.flatnonzero(~plot_used)
                 if len(tracks) == 0 or len(free) == 0:
                     continue
                 assigned_tracks, assigned_plots = self._associate(
-                    s, tracks, free, t_ref[tracks], plots, converted
+                    s, tracks, free, t_ref[tracks], plots, converted, manoeuvre
                 )
                 hit[assigned_tracks] = True
                 plot_used[assigned_plots] = True
@@ -255,8 +266,21 @@ class Tracker:
             t_ref = np.full(len(bank), mid)
             expected = np.ones(len(bank), dtype=bool)
         if sensor.max_range_m:
-            expected &= ground <= sensor.max_range_m
+            # out of this sensor's range no plot is due, unless no sensor covers the track:
+            # then the misses pile up and the track is deleted (it has left the coverage)
+            expected &= (ground <= sensor.max_range_m) | ~self._in_any_coverage(position)
         return t_ref, expected
+
+    def _in_any_coverage(self, position: np.ndarray) -> np.ndarray:
+        inside = np.zeros(len(position), dtype=bool)
+        for sensor in self.sensors.sensors:
+            if not sensor.is_radar:
+                continue
+            if not sensor.max_range_m or sensor.is_moving:
+                return np.ones(len(position), dtype=bool)
+            offset = position[:, :2] - sensor.position[:2]
+            inside |= np.einsum("ki,ki->k", offset, offset) <= sensor.max_range_m**2
+        return inside
 
     def _extrapolate_positions(self, t: float | np.ndarray, index=slice(None)) -> np.ndarray:
         """Deterministic position extrapolation (no covariance), for reference geometry."""
@@ -273,24 +297,33 @@ class Tracker:
             return position
         return np.column_stack([position, np.nan_to_num(z, nan=0.0)])
 
-    def _transition(self, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """F(dt), Q(|dt|); a negative dt (sectors of merged sensors overlap) extrapolates backwards."""
+    def _transition(self, dt: np.ndarray, tracks: np.ndarray, manoeuvre: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """F(dt), Q(|dt|) for the given tracks; manoeuvring ones (or all, with ``manoeuvre``)
+        get the manoeuvre process noise.  A negative dt (sectors of merged sensors overlap)
+        extrapolates backwards."""
         step = np.abs(dt)
         F = self.model.F_batch(step)
         Q = self.model.Q_batch(step)
+        if manoeuvre or self.config.manoeuvre_q_scale != 1.0:
+            flag = np.ones(len(tracks), bool) if manoeuvre else self.bank.manoeuvring[tracks]
+            Q *= np.where(flag, self.config.manoeuvre_q_scale, 1.0)[:, None, None]
         backwards = dt < 0
         if backwards.any():
             F[backwards] = np.linalg.inv(F[backwards])
         return F, Q
 
-    def _associate(self, s, tracks, free, t_ref, plots: PlotColumns, converted):
-        """Gate and assign one stage; returns (track indices, plot indices) assigned."""
+    def _associate(self, s, tracks, free, t_ref, plots: PlotColumns, converted, manoeuvre: bool = False):
+        """Gate and assign one stage; returns (track indices, plot indices) assigned.
+
+        With ``manoeuvre`` the tracks are predicted with the manoeuvre process noise
+        (psi = 1) and those that get a plot switch to it.
+        """
         cfg = self.config
         sensor = self.sensors.sensors[s]
         bank = self.bank
         dim = self.dim
         # --- sparse candidate search around the predicted position at the reference time
-        F_ref, Q_ref = self._transition(t_ref - bank.t[tracks])
+        F_ref, Q_ref = self._transition(t_ref - bank.t[tracks], tracks, manoeuvre)
         x_ref, P_ref = kf_predict(bank.x[tracks], bank.P[tracks], F_ref, Q_ref)
         pos_cov = P_ref[:, self.pos_idx[:, None], self.pos_idx]
         sigma_track = np.sqrt(np.maximum(max_eigenvalue_sym(pos_cov), 0.0))
@@ -309,7 +342,7 @@ class Tracker:
         self.stats["candidate_pairs"] += len(ti)
         # --- exact gate: each candidate predicted to its plot's own time
         dt = plots.time[pj] - bank.t[ti]
-        F, Q = self._transition(dt)
+        F, Q = self._transition(dt, ti, manoeuvre)
         x_pred, P_pred = kf_predict(bank.x[ti], bank.P[ti], F, Q)
         z, R = self._pair_measurements(sensor, ti, pj, plots, converted)
         n_state = self.model.dim
@@ -335,9 +368,26 @@ class Tracker:
         # --- global nearest neighbour per cluster; leaving a track unassigned costs its gate
         chosen = assign_gnn(ti, pj, d2, len(bank), len(plots), miss_cost=self._max_gate)
         ti, pj = ti[chosen], pj[chosen]
+        if manoeuvre:
+            bank.manoeuvring[ti] = True
+            bank.nis_avg[ti] = np.maximum(bank.nis_avg[ti], self.config.manoeuvre_on_nis)
+            self.stats["manoeuvre_gate_hits"] += len(ti)
+        else:
+            self._detect_manoeuvres(ti, d2[chosen] / n_measured[inside][chosen])
         result = kf_update(x_pred[chosen], P_pred[chosen], nu[chosen], H[chosen], R_full[chosen])
         self._write_updates(ti, pj, result.x, result.P, plots, converted)
         return ti, pj
+
+    def _detect_manoeuvres(self, tracks: np.ndarray, nis: np.ndarray) -> None:
+        """Update the manoeuvre flag psi from the smoothed NIS (with hysteresis)."""
+        cfg = self.config
+        bank = self.bank
+        memory = cfg.manoeuvre_memory
+        first = bank.n_updates[tracks] <= 1
+        smoothed = np.where(first, nis, memory * bank.nis_avg[tracks] + (1.0 - memory) * nis)
+        bank.nis_avg[tracks] = smoothed
+        flag = bank.manoeuvring[tracks]
+        bank.manoeuvring[tracks] = np.where(flag, smoothed > cfg.manoeuvre_off_nis, smoothed > cfg.manoeuvre_on_nis)
 
     def _pair_measurements(self, sensor, ti, pj, plots: PlotColumns, converted):
         """Converted position per pair; a 2-D plot without Mode C uses its track's altitude."""
@@ -510,7 +560,7 @@ class Tracker:
         self.stats["output_instants"] += 1
         if len(rows) == 0:
             return
-        F, Q = self._transition(instant - bank.t[rows])
+        F, Q = self._transition(instant - bank.t[rows], rows)
         x, P = kf_predict(bank.x[rows], bank.P[rows], F, Q)
         self.outputs.append(self._track_rows(instant, rows, x, P))
 
