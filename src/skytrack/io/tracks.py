@@ -1,0 +1,134 @@
+"""Tracker output (FORMATS.md "tracks"): writer that enforces the layout, and reader.
+
+:func:`write_tracks` writes every :data:`~skytrack.io.schema.TRACK_COLUMNS` column in
+FORMATS.md order with its dtype (nulls when the tracker does not know a value, e.g. ``z``
+in 2-D tracking), then the extra columns (e.g. ``cov_i_j`` from ``--full-covariance``) in
+their order.  With an ``origin``, absent ``lat``/``lon``/``alt_m`` are computed from
+``x``/``y``/``z`` where those are known.
+
+Checks (both directions): ``time`` finite, ``track_id`` an integer, ``x``/``y`` finite;
+``z``, velocities, variances, lat/lon/alt_m finite or null; variances >= 0; lat/lon in
+range; ``status`` confirmed/coasting or null; ``n_updates``/``n_misses`` non-negative
+integers or null; identity columns as in plots (``mode3a`` 4 octal digits, ``icao24``
+6 hex digits, ``iff`` friend/foe/undetermined).  ``model_probs`` is JSON text, not parsed.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Literal, overload
+
+import numpy as np
+import pandas as pd
+
+from skytrack.geo.sensors import Origin
+from skytrack.io.checks import (
+    RowChecks,
+    as_float,
+    as_int,
+    as_string,
+    check_identity_columns,
+    emit_warnings,
+    flag_not_in,
+    flag_values,
+    order_columns,
+    require_columns,
+)
+from skytrack.io.errors import ReadReport
+from skytrack.io.frames import geodetic_from_enu
+from skytrack.io.schema import TRACK_SCHEMA, TRACK_STATUS_VALUES, TableSchema
+from skytrack.io.tables import TableSource, load_table, write_table
+
+_COVARIANCE = re.compile(r"cov_\d+_\d+")
+_VARIANCES = ("var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz")
+
+
+def _validate_tracks(df: pd.DataFrame, source: TableSource, lenient: bool, report: ReadReport) -> pd.DataFrame:
+    require_columns(df, source, ["time", "track_id", "x", "y"], "tracks")
+    df = df.copy(deep=False)
+    checks = RowChecks(source, len(df))
+    as_float(df, "time", checks, required=True)
+    as_int(df, "track_id", checks, nullable=False)
+    for name in ("x", "y"):
+        as_float(df, name, checks, required=True)
+    for name in ("z", "vx", "vy", "vz", "alt_m"):
+        if name in df.columns:
+            as_float(df, name, checks, required=False)
+    for name in _VARIANCES:
+        if name in df.columns:
+            values = as_float(df, name, checks, required=False)
+            flag_values(checks, values < 0, values, name, "is negative")
+    for name, limit in (("lat", 90.0), ("lon", 180.0)):
+        if name in df.columns:
+            values = as_float(df, name, checks, required=False)
+            flag_values(checks, np.abs(values) > limit, values, name, f"is outside [-{limit:g}, {limit:g}]")
+    if "status" in df.columns:
+        flag_not_in(checks, as_string(df, "status", checks, required=False), "status", TRACK_STATUS_VALUES)
+    for name in ("n_updates", "n_misses"):
+        if name in df.columns:
+            as_int(df, name, checks, nullable=True)
+            values = df[name].to_numpy(dtype=np.float64, na_value=np.nan)
+            flag_values(checks, values < 0, values, name, "is negative")
+    check_identity_columns(df, checks, report)
+    for name in df.columns:
+        if _COVARIANCE.fullmatch(str(name)):  # CSV would infer whole numbers as int64
+            as_float(df, name, checks, required=False)
+    if "model_probs" in df.columns:
+        as_string(df, "model_probs", checks, required=False)
+    df = checks.finish(df, lenient=lenient, report=report)
+    return order_columns(df, TRACK_SCHEMA)
+
+
+def add_missing_columns(df: pd.DataFrame, schema: TableSchema) -> pd.DataFrame:
+    """All columns of ``schema``: the absent ones as nulls of the schema dtype."""
+    n = len(df)
+    for column in schema.columns:
+        if column.name in df.columns:
+            continue
+        if column.kind == "float":
+            df[column.name] = np.full(n, np.nan)
+        elif column.kind == "int":
+            df[column.name] = pd.array([pd.NA] * n, dtype=pd.Int64Dtype())
+        elif column.kind == "string":
+            df[column.name] = pd.Series([None] * n, index=df.index, dtype=object).astype(column.dtype)
+        else:
+            raise ValueError(f"no null value for bool column {column.name}")
+    return order_columns(df, schema)
+
+
+@overload
+def read_tracks(path: str | Path, *, lenient: Literal[False] = ...) -> pd.DataFrame: ...
+@overload
+def read_tracks(path: str | Path, *, lenient: Literal[True] = ...) -> tuple[pd.DataFrame, ReadReport]: ...
+
+
+def read_tracks(path, *, lenient=False):
+    """Read and validate a tracks table; ``(tracks, report)`` with ``lenient=True``.
+
+    Absent optional columns stay absent (files written by :func:`write_tracks` have all).
+    """
+    report = ReadReport(file=str(path))
+    df, source = load_table(path, lenient=lenient, report=report)
+    tracks = _validate_tracks(df, source, lenient, report)
+    emit_warnings(report, lenient)
+    return (tracks, report) if lenient else tracks
+
+
+def write_tracks(df: pd.DataFrame, path: str | Path, *, origin: Origin | None = None) -> Path:
+    """Write tracks in the FORMATS.md layout: all TRACK_COLUMNS in order, then extras."""
+    source = TableSource.for_frame(f"tracks to write to {path}")
+    report = ReadReport(file=source.display)
+    tracks = _validate_tracks(df.reset_index(drop=True), source, False, report)
+    emit_warnings(report, False)
+    if origin is not None and not {"lat", "lon", "alt_m"} & set(tracks.columns):
+        z = tracks["z"].to_numpy() if "z" in tracks.columns else np.full(len(tracks), np.nan)
+        known = np.isfinite(z)
+        geo = np.full((len(tracks), 3), np.nan)
+        if known.any():
+            geo[known] = geodetic_from_enu(
+                tracks["x"].to_numpy()[known], tracks["y"].to_numpy()[known], z[known], origin
+            )
+        for i, name in enumerate(("lat", "lon", "alt_m")):
+            tracks[name] = geo[:, i]
+    return write_table(add_missing_columns(tracks, TRACK_SCHEMA), path)
