@@ -1,6 +1,6 @@
 """Benchmark (not a test): read, validate and write N plot rows, Parquet and CSV.
 
-Usage: python tests/io/bench_read_plots.py [N] [DIR]
+Usage: python benchmarks/io_read_plots.py [N] [DIR]
 Prints rows/second of each step and the peak memory of the process.
 """
 

@@ -21,6 +21,9 @@ from typing import Literal, overload
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pcsv
+import pyarrow.parquet as pq
 
 from skytrack.geo.sensors import Origin
 from skytrack.io.checks import (
@@ -38,7 +41,8 @@ from skytrack.io.checks import (
 from skytrack.io.errors import ReadReport
 from skytrack.io.frames import geodetic_from_enu
 from skytrack.io.schema import TRACK_SCHEMA, TRACK_STATUS_VALUES, TableSchema
-from skytrack.io.tables import TableSource, load_table, write_table
+from skytrack.io.errors import InputError
+from skytrack.io.tables import TableSource, load_table, table_format, write_table
 
 _COVARIANCE = re.compile(r"cov_\d+_\d+")
 _VARIANCES = ("var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz")
@@ -132,3 +136,74 @@ def write_tracks(df: pd.DataFrame, path: str | Path, *, origin: Origin | None = 
         for i, name in enumerate(("lat", "lon", "alt_m")):
             tracks[name] = geo[:, i]
     return write_table(add_missing_columns(tracks, TRACK_SCHEMA), path)
+
+
+_ARROW_KINDS = {"float": pa.float64(), "int": pa.int64(), "string": pa.string(), "bool": pa.bool_()}
+
+
+class TrackWriter:
+    """Write a tracks table chunk by chunk (bounded memory on long recordings).
+
+    Every chunk is validated and laid out exactly as :func:`write_tracks` does; the
+    Arrow schema is fixed from the FORMATS.md column kinds (extra columns take the
+    first chunk's types), so chunks whose identity columns happen to be all-null
+    still append.  Parquet files are written one row group per chunk; CSV files are
+    appended.  Use as a context manager.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.format = table_format(self.path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._schema: pa.Schema | None = None
+        self._writer = None
+        self._stream = None
+        self.rows = 0
+
+    def _schema_for(self, table: pa.Table) -> pa.Schema:
+        fields = []
+        for field in table.schema:
+            kind = TRACK_SCHEMA[field.name].kind if field.name in TRACK_SCHEMA.names else None
+            fields.append(pa.field(field.name, _ARROW_KINDS[kind] if kind else field.type))
+        return pa.schema(fields)
+
+    def write(self, chunk: pd.DataFrame) -> None:
+        if len(chunk) == 0:
+            return
+        source = TableSource.for_frame(f"tracks to write to {self.path}")
+        report = ReadReport(file=source.display)
+        tracks = add_missing_columns(_validate_tracks(chunk.reset_index(drop=True), source, False, report), TRACK_SCHEMA)
+        emit_warnings(report, False)
+        table = pa.Table.from_pandas(tracks, preserve_index=False)
+        if self._schema is None:
+            self._schema = self._schema_for(table)
+            if self.format == "parquet":
+                self._writer = pq.ParquetWriter(str(self.path), self._schema)
+            else:
+                self._stream = (
+                    pa.CompressedOutputStream(str(self.path), "gzip")
+                    if self.path.name.lower().endswith(".gz")
+                    else pa.OSFile(str(self.path), "wb")
+                )
+                self._writer = pcsv.CSVWriter(self._stream, self._schema)
+        try:
+            self._writer.write_table(table.select(self._schema.names).cast(self._schema))
+        except (pa.ArrowException, KeyError) as exc:
+            raise InputError(f"cannot append tracks ({exc})", file=str(self.path)) from None
+        self.rows += len(tracks)
+
+    def close(self) -> None:
+        if self._writer is None:
+            # nothing was written: still leave a valid, empty tracks file
+            write_tracks(add_missing_columns(pd.DataFrame({c: [] for c in TRACK_SCHEMA.required}), TRACK_SCHEMA), self.path)
+            return
+        self._writer.close()
+        if self._stream is not None:
+            self._stream.close()
+        self._writer = None
+
+    def __enter__(self) -> "TrackWriter":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
