@@ -55,9 +55,9 @@ class TrackerConfig:
     discretization: str = "exact"
     cv_q: float = 0.5
     manoeuvre_q_scale: float = 3000.0
-    manoeuvre_on_nis: float = 2.0
+    manoeuvre_on_nis: float = 3.0
     manoeuvre_off_nis: float = 1.2
-    manoeuvre_memory: float = 0.3
+    manoeuvre_memory: float = 0.5
     p_gate: float = 0.9995
     gate_threshold: float | None = None
     confirm_m: int = 3
