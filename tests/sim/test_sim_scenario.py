@@ -203,7 +203,8 @@ def test_bundled_demo_scenario():
     assert (sensor.scan_period_s, sensor.sigma_range_m, sensor.sigma_azimuth_deg, sensor.max_range_m, sensor.p_detection) == (4.0, 40.0, 0.07, 250000.0, 0.9)
     assert sensor.clutter_per_scan == 20.0 and demo.duration_s == 600.0
     assert 0.15 < np.mean([len(t.legs) > 0 for t in targets]) < 0.4
-    assert 0.8 < np.mean([t.transponder for t in targets]) <= 0.95
+    # controlled-airspace traffic: all transponder-equipped but the primary-only DEMO3
+    assert [t.id for t in targets if not t.transponder] == ["DEMO3"]
 
 
 @pytest.mark.parametrize("name", ["two_radars", "radar3d", "crossing"])

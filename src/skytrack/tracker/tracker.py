@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -617,6 +617,3 @@ def track_plots(plots: pd.DataFrame, sensors: SensorSet, config: TrackerConfig |
     return tracks, tracker
 
 
-def iter_chunks(frame: pd.DataFrame, rows: int) -> Iterable[pd.DataFrame]:
-    for start in range(0, len(frame), rows):
-        yield frame.iloc[start : start + rows]

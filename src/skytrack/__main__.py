@@ -1,0 +1,5 @@
+"""``python -m skytrack`` runs the command line."""
+
+from skytrack.cli.main import app
+
+app()

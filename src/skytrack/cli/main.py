@@ -1,0 +1,290 @@
+"""The ``skytrack`` command: simulate, track, evaluate, demo and the papers' studies.
+
+Thin layer (DESIGN.md): parse options, call the library, print with rich.  Every input
+problem ends in a one-line error naming the file and the place (exit code 2), never
+in a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from skytrack import __version__
+from skytrack.cli.study import study_app
+
+app = typer.Typer(
+    name="skytrack",
+    help="Air-surveillance tracking: radar plots, SSR and ADS-B to an identified air picture.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(study_app, name="study")
+
+console = Console()
+error_console = Console(stderr=True)
+
+
+def _fail(message: str) -> None:
+    error_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code=2)
+
+
+def reports_input_errors(command):
+    """Turn input problems (bad files, bad options) into a one-line error and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        from skytrack.sim import ScenarioError
+
+        try:
+            return command(*args, **kwargs)
+        except (ValueError, KeyError, FileNotFoundError, ScenarioError) as exc:
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+            _fail(str(message))
+
+    return wrapper
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description:<12}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>5.1f}%"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=error_console,
+        transient=False,
+    )
+
+
+def _version(value: bool) -> None:
+    if value:
+        console.print(f"skytrack {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+    ] = False,
+) -> None:
+    """skytrack command line."""
+
+
+# ---------------------------------------------------------------------------- simulate
+@app.command()
+@reports_input_errors
+def simulate(
+    scenario: Annotated[str, typer.Argument(help="Scenario YAML file, or the name of a bundled scenario (demo, two_radars, radar3d, crossing).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder for plots, truth and sensors.json.")],
+    seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise (default: the scenario's).")] = None,
+    fmt: Annotated[str, typer.Option("--format", help="Table format: parquet or csv.")] = "parquet",
+) -> None:
+    """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md)."""
+    from skytrack.io import write_plots, write_sensors, write_truth
+
+    if fmt not in ("parquet", "csv"):
+        _fail(f"--format must be parquet or csv, got {fmt!r}")
+    result = _run_simulation(scenario, seed)
+    paths = {
+        "plots": write_plots(result.plots, out / f"plots.{fmt}", sensors=result.sensors),
+        "truth": write_truth(result.truth, out / f"truth.{fmt}"),
+        "sensors": write_sensors(result.sensors, out / "sensors.json"),
+    }
+    _print_simulation_summary(result, paths)
+
+
+def _run_simulation(scenario_source: str, seed: int | None):
+    import numpy as np
+
+    from skytrack.sim import load_scenario, simulate as run_simulation
+
+    scenario = load_scenario(scenario_source)
+    rng = None if seed is None else np.random.default_rng(seed)
+    with _progress() as progress:
+        task = progress.add_task("simulate", total=1.0)
+        result = run_simulation(scenario, rng=rng, progress=lambda f: progress.update(task, completed=f))
+        progress.update(task, completed=1.0)
+    return result
+
+
+def _print_simulation_summary(result, paths: dict) -> None:
+    plots = result.plots
+    false_plots = int((plots["truth_id"] == "").sum()) if "truth_id" in plots.columns else 0
+    table = Table(title=f"simulated scenario {result.scenario.name!r}", show_header=False)
+    table.add_row("aircraft", str(result.truth["target_id"].nunique()))
+    table.add_row("sensors", ", ".join(result.sensors.names))
+    table.add_row("duration", f"{result.scenario.duration_s:.0f} s")
+    table.add_row("plots", f"{len(plots)} ({false_plots} false)")
+    for name, path in paths.items():
+        table.add_row(name, str(path))
+    console.print(table)
+
+
+# ---------------------------------------------------------------------------- track
+@app.command()
+@reports_input_errors
+def track(
+    plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
+    sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv).")],
+    model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = "cv",
+    q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = 0.5,
+    tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = 20.0,
+    sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = 4.0,
+    discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = "exact",
+    manoeuvre_scale: Annotated[float, typer.Option(help="Process-noise factor while a track manoeuvres (1 = off).")] = 3000.0,
+    p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = 0.9995,
+    gate_threshold: Annotated[Optional[float], typer.Option(help="Gate threshold g (overrides --p-gate).")] = None,
+    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = "3/4",
+    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = 5,
+    init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = "one-point",
+    tracking_dim: Annotated[Optional[int], typer.Option(help="2 (horizontal) or 3; default from the radars.")] = None,
+    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = 6000.0,
+    output_interval: Annotated[Optional[float], typer.Option(help="Report tracks every N s (default: each scan of the first radar).")] = None,
+    full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
+    lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
+    chunk_rows: Annotated[int, typer.Option(help="Plots processed per chunk (bounds memory).")] = 200_000,
+) -> None:
+    """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
+    from skytrack.tracker import TrackerConfig
+
+    confirm_m, confirm_n = _parse_confirm(confirm)
+    config = TrackerConfig(
+        model=model, cv_q=q, singer_tau_s=tau, singer_sigma_a=sigma_a, discretization=discretization,
+        manoeuvre_q_scale=manoeuvre_scale, p_gate=p_gate, gate_threshold=gate_threshold,
+        confirm_m=confirm_m, confirm_n=confirm_n, delete_misses=delete_misses, init=init,
+        tracking_dim=tracking_dim, default_altitude_m=default_altitude, output_interval_s=output_interval,
+        full_covariance=full_covariance,
+    )
+    summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows)
+    _print_tracking_summary(summary)
+
+
+def _parse_confirm(text: str) -> tuple[int, int]:
+    try:
+        m, n = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise ValueError(f"--confirm must look like M/N (e.g. 3/4), got {text!r}") from None
+    return m, n
+
+
+def run_tracking(plots_path: Path, sensors_path: Path, out: Path, config, *, lenient: bool = False,
+                 chunk_rows: int = 200_000) -> dict:
+    """Read, track in chunks, and write tracks incrementally; returns a summary dict."""
+    from skytrack.io import read_plots, read_sensors
+    from skytrack.io.tracks import TrackWriter
+    from skytrack.tracker import Tracker
+
+    sensor_set = read_sensors(sensors_path)
+    loaded = read_plots(plots_path, sensors=sensor_set, lenient=lenient)
+    plots, report = loaded if lenient else (loaded, None)
+    tracker = Tracker(sensor_set, config)
+    started = time.perf_counter()
+    total = len(plots)
+    with TrackWriter(out) as writer, _progress() as progress:
+        task = progress.add_task("track", total=max(total, 1))
+        for start in range(0, total, chunk_rows):
+            tracker.feed(plots.iloc[start : start + chunk_rows], source=str(plots_path))
+            writer.write(tracker.drain())
+            progress.update(task, completed=min(total, start + chunk_rows))
+        tracker.finish()
+        writer.write(tracker.drain())
+        progress.update(task, completed=max(total, 1))
+    elapsed = time.perf_counter() - started
+    return {
+        "plots": total, "tracks_file": str(out), "track_rows": writer.rows, "elapsed_s": elapsed,
+        "stats": dict(tracker.stats), "warnings": list(tracker.warnings), "report": report,
+        "tracking_dim": tracker.dim,
+    }
+
+
+def _print_tracking_summary(summary: dict) -> None:
+    stats = summary["stats"]
+    if summary["report"] is not None and summary["report"].n_skipped:
+        error_console.print(f"[yellow]skipped rows:[/] {summary['report']}")
+    for warning in summary["warnings"]:
+        error_console.print(f"[yellow]warning:[/] {warning}")
+    rate = summary["plots"] / summary["elapsed_s"] if summary["elapsed_s"] > 0 else float("nan")
+    table = Table(title="tracking", show_header=False)
+    table.add_row("plots", f"{summary['plots']} ({stats.get('plots_assigned', 0)} assigned)")
+    table.add_row("tracks confirmed", str(stats.get("tracks_confirmed", 0)))
+    table.add_row("tentative tracks dropped", str(stats.get("tentative_dropped", 0)))
+    table.add_row("tracks deleted", str(stats.get("tracks_deleted", 0)))
+    if stats.get("plots_height_above_slant_range"):
+        table.add_row("plots placed over the radar", f"{stats['plots_height_above_slant_range']} (height above slant range)")
+    table.add_row("tracking", f"{summary['tracking_dim']}-D")
+    table.add_row("track rows written", f"{summary['track_rows']} -> {summary['tracks_file']}")
+    table.add_row("time", f"{summary['elapsed_s']:.2f} s ({rate:,.0f} plots/s incl. reading chunks)")
+    console.print(table)
+
+
+# ---------------------------------------------------------------------------- evaluate
+@app.command()
+@reports_input_errors
+def evaluate(
+    tracks: Annotated[Path, typer.Argument(help="Tracks table written by `skytrack track` (or another tool).")],
+    truth: Annotated[Path, typer.Option("--truth", help="Truth table (FORMATS.md or OpenSky state vectors).")],
+    json_out: Annotated[Optional[Path], typer.Option("--json", help="Metrics JSON to write (default: next to TRACKS).")] = None,
+    sensors: Annotated[Optional[Path], typer.Option("--sensors", help="sensors.json (origin for OpenSky truth).")] = None,
+    cutoff: Annotated[float, typer.Option(help="OSPA/GOSPA cut-off c (m).")] = 2000.0,
+    order: Annotated[float, typer.Option(help="OSPA/GOSPA order p.")] = 2.0,
+    gate: Annotated[float, typer.Option(help="Largest track-to-truth distance of an assignment (m).")] = 2000.0,
+    start_time: Annotated[Optional[float], typer.Option(help="Time the tracker started (s), for time-to-first-track.")] = None,
+) -> None:
+    """Compare tracks with truth: GOSPA/OSPA, RMSE, NEES, continuity, breaks, swaps, false tracks."""
+    from skytrack.analysis import evaluate as run_evaluation
+    from skytrack.io import read_sensors, read_tracks, read_truth
+
+    sensor_set = read_sensors(sensors) if sensors else None
+    evaluation = run_evaluation(
+        read_tracks(tracks), read_truth(truth, sensors=sensor_set), cutoff_m=cutoff, order=order,
+        association_gate_m=gate, start_time_s=start_time,
+    )
+    json_path = json_out or tracks.with_name(tracks.name.split(".")[0] + "_metrics.json")
+    _write_json(evaluation.to_dict(), json_path)
+    _print_evaluation(evaluation, json_path)
+
+
+def _write_json(data: dict, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+
+
+def _print_evaluation(evaluation, json_path: Path | None) -> None:
+    table = Table(title="evaluation against truth")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    for row in evaluation.summary_rows():
+        table.add_row(*row)
+    console.print(table)
+    for note in evaluation.notes:
+        console.print(f"[dim]note: {note}[/]")
+    if json_path is not None:
+        console.print(f"metrics written to {json_path}")
+
+
+# ---------------------------------------------------------------------------- demo
+@app.command()
+@reports_input_errors
+def demo(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Report folder.")] = Path("skytrack-demo"),
+    scenario: Annotated[str, typer.Option(help="Scenario file or bundled name.")] = "demo",
+    seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise.")] = None,
+) -> None:
+    """Simulate the demo scenario, track it, evaluate it and write a report folder."""
+    from skytrack.cli.demo import run_demo
+
+    run_demo(out, scenario, seed, console=console, progress_factory=_progress, print_evaluation=_print_evaluation)
