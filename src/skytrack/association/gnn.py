@@ -40,23 +40,28 @@ def assign_gnn(
     if n_pairs == 0:
         return np.zeros(0, dtype=np.intp)
     miss = np.broadcast_to(np.asarray(miss_cost, dtype=float), (n_tracks,))
-    graph = coo_matrix(
-        (np.ones(n_pairs), (track_index, n_tracks + plot_index)),
-        shape=(n_tracks + n_plots, n_tracks + n_plots),
+    # a pair whose track and plot appear in no other pair is a cluster of its own
+    lone = (np.bincount(track_index, minlength=n_tracks)[track_index] == 1) & (
+        np.bincount(plot_index, minlength=n_plots)[plot_index] == 1
     )
-    _, labels = connected_components(graph, directed=False)
-    pair_label = labels[track_index]
-    # pairs per component: a component with exactly one pair is one track and one plot
-    order = np.argsort(pair_label, kind="stable")
-    sorted_labels = pair_label[order]
-    starts = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]])
-    sizes = np.diff(np.r_[starts, n_pairs])
-    single = order[starts[sizes == 1]]
+    single = np.flatnonzero(lone)
     # a lone pair is taken when it is cheaper than leaving its track unassigned
     chosen = [single[cost[single] <= miss[track_index[single]]]]
-    for start, size in zip(starts[sizes > 1], sizes[sizes > 1]):
-        pairs = order[start : start + size]
-        chosen.append(_solve_cluster(pairs, track_index[pairs], plot_index[pairs], cost[pairs], miss))
+    rest = np.flatnonzero(~lone)
+    if len(rest):
+        graph = coo_matrix(
+            (np.ones(len(rest)), (track_index[rest], n_tracks + plot_index[rest])),
+            shape=(n_tracks + n_plots, n_tracks + n_plots),
+        )
+        _, labels = connected_components(graph, directed=False)
+        pair_label = labels[track_index[rest]]
+        order = rest[np.argsort(pair_label, kind="stable")]
+        sorted_labels = labels[track_index[order]]
+        starts = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]])
+        ends = np.r_[starts[1:], len(order)]
+        for start, end in zip(starts, ends):
+            pairs = order[start:end]
+            chosen.append(_solve_cluster(pairs, track_index[pairs], plot_index[pairs], cost[pairs], miss))
     return np.sort(np.concatenate(chosen))
 
 

@@ -60,6 +60,8 @@ _PHASE_MIN_PLOTS = 20
 _PHASE_TOLERANCE = 0.02
 #: search-radius safety factor over the exact Mahalanobis bound
 _RADIUS_FACTOR = 1.05
+#: tracks whose beam crossing is this fraction of a scan outside a sector still take part
+_SECTOR_MARGIN = 0.05
 
 
 class Tracker:
@@ -90,7 +92,7 @@ class Tracker:
         self.bank = TrackBank(self.model.dim)
         self.next_track_id = 1
         n_sensors = len(sensors.sensors)
-        sectors = cfg.sectors_per_scan or (1 if len(radars) == 1 else 8)
+        sectors = cfg.sectors_per_scan or (1 if len(radars) == 1 else 4)
         self.period = np.array([s.scan_period_s if s.scan_period_s else np.nan for s in sensors.sensors])
         self.rotating = np.array([bool(s.scan_period_s) and not s.is_moving for s in sensors.sensors])
         self.window_length = np.where(self.rotating, self.period / sectors, cfg.window_s)
@@ -221,8 +223,8 @@ class Tracker:
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
         if n_tracks:
-            t_ref, expected = self._expectations(s, w_start, w_end)
-            status = self.bank.status[:n_tracks]
+            t_ref, expected, nearby = self._expectations(s, w_start, w_end)
+            status = np.where(nearby, self.bank.status[:n_tracks], -1)
             confirmed = status == CONFIRMED
             # confirmed tracks first; then confirmed quiet tracks that found nothing try the
             # manoeuvre gate (psi = 1); then tentative tracks on what is left
@@ -248,8 +250,9 @@ class Tracker:
         self._initiate(s, plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         self._manage()
 
-    def _expectations(self, s: int, w_start: float, w_end: float) -> tuple[np.ndarray, np.ndarray]:
-        """Reference time of every track in this window and whether a plot is expected."""
+    def _expectations(self, s: int, w_start: float, w_end: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reference time of every track in this window, whether a plot is expected, and
+        whether the track is near enough to the swept sector to take part in association."""
         sensor = self.sensors.sensors[s]
         bank = self.bank
         mid = 0.5 * (w_start + w_end)
@@ -257,19 +260,23 @@ class Tracker:
         local = sensor.to_local(self._as_3d(position, bank.z_hint))
         ground = np.hypot(local[:, 0], local[:, 1])
         if self.rotating[s]:
+            period = self.period[s]
             azimuth = np.remainder(np.arctan2(local[:, 0], local[:, 1]), 2 * np.pi)
-            t_ref = beam_crossing_time(azimuth, self.phase[s], self.period[s], w_start)
+            t_ref = beam_crossing_time(azimuth, self.phase[s], period, w_start)
             expected = t_ref < w_end
-            # keep the reference inside the window for tracks crossed just outside it
-            t_ref = np.where(expected, t_ref, np.clip(t_ref, w_start, w_end))
+            # tracks crossed just outside a sector may still have their plot in it
+            margin = _SECTOR_MARGIN * period
+            nearby = expected | (t_ref >= w_start + period - margin) | (t_ref < w_end + margin)
+            t_ref = np.where(expected, t_ref, np.clip(t_ref - np.where(t_ref >= w_start + period - margin, period, 0.0), w_start, w_end))
         else:
             t_ref = np.full(len(bank), mid)
             expected = np.ones(len(bank), dtype=bool)
+            nearby = expected
         if sensor.max_range_m:
             # out of this sensor's range no plot is due, unless no sensor covers the track:
             # then the misses pile up and the track is deleted (it has left the coverage)
             expected &= (ground <= sensor.max_range_m) | ~self._in_any_coverage(position)
-        return t_ref, expected
+        return t_ref, expected, nearby
 
     def _in_any_coverage(self, position: np.ndarray) -> np.ndarray:
         inside = np.zeros(len(position), dtype=bool)
