@@ -212,8 +212,9 @@ def run_tracking(plots_path: Path, sensors_path: Path, out: Path, config, *, len
 
 def _print_tracking_summary(summary: dict) -> None:
     stats = summary["stats"]
-    if summary["report"] is not None and summary["report"].n_skipped:
-        error_console.print(f"[yellow]skipped rows:[/] {summary['report']}")
+    report = summary["report"]
+    if report is not None and not report.ok:
+        error_console.print(f"[yellow]lenient read:[/] {report}", highlight=False)
     for warning in summary["warnings"]:
         error_console.print(f"[yellow]warning:[/] {warning}")
     rate = summary["plots"] / summary["elapsed_s"] if summary["elapsed_s"] > 0 else float("nan")
