@@ -5,6 +5,7 @@ reference origin, azimuth clockwise from north in radians inside the library.
 """
 
 from skytrack.geo.polar import (
+    azimuth_of,
     cartesian_to_polar,
     polar_to_cartesian,
     slant_to_local,
@@ -15,6 +16,7 @@ from skytrack.geo.sensors import Origin, Sensor, SensorSet, SENSOR_TYPES
 from skytrack.geo.wgs84 import enu_to_geodetic, geodetic_to_enu, enu_rotation
 
 __all__ = [
+    "azimuth_of",
     "cartesian_to_polar",
     "polar_to_cartesian",
     "slant_to_local",

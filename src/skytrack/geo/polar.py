@@ -18,12 +18,24 @@ import numpy as np
 #: Mean Earth radius (IUGG R1 of WGS84) used by the sphere approximation of FORMATS.md.
 EARTH_RADIUS_M = 6_371_008.8
 
+_BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
+
 
 def wrap_angle(angle):
     """Wrap angles (rad) to (-pi, pi]."""
     wrapped = np.remainder(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
     # remainder maps +pi to -pi; keep the interval half-open on the left as documented
     return np.where(wrapped == -np.pi, np.pi, wrapped)
+
+
+def azimuth_of(x, y):
+    """Azimuth clockwise from north of the direction (x east, y north), in [0, 2 pi).
+
+    ``np.remainder`` of a tiny negative angle rounds to exactly 2 pi; it becomes the
+    largest double below 2 pi, which keeps it west of north.
+    """
+    az = np.remainder(np.arctan2(x, y), 2.0 * np.pi)
+    return np.where(az >= 2.0 * np.pi, _BELOW_TWO_PI, az)
 
 
 def cartesian_to_polar(x, y, z, vx=None, vy=None, vz=None):
@@ -36,7 +48,7 @@ def cartesian_to_polar(x, y, z, vx=None, vy=None, vz=None):
     z = np.asarray(z, dtype=float)
     ground = np.hypot(x, y)
     r = np.sqrt(ground * ground + z * z)
-    az = np.remainder(np.arctan2(x, y), 2.0 * np.pi)
+    az = azimuth_of(x, y)
     el = np.arctan2(z, ground)
     if vx is None:
         return r, az, el

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skytrack.geo.polar import azimuth_of
+
 POLAR_COMPONENTS = ("r", "az", "el", "rdot", "z_alt")
 
 
@@ -92,7 +94,7 @@ class PolarMeasurementModel:
                 if jacobian:
                     d_local_pos[:, row] = rel / r[:, None]
             elif comp == "az":
-                h[:, row] = np.remainder(np.arctan2(x, y), 2.0 * np.pi)
+                h[:, row] = azimuth_of(x, y)
                 if jacobian:
                     d_local_pos[:, row, 0] = y / ground2
                     d_local_pos[:, row, 1] = -x / ground2

@@ -56,8 +56,13 @@ class PlotColumns:
         return PlotColumns.from_frame(pd.DataFrame({"time": [], "sensor": [], "range_m": [], "azimuth_deg": []}), None)
 
     @staticmethod
-    def from_frame(frame: pd.DataFrame, sensors: SensorSet | None, source: str = "plots") -> "PlotColumns":
-        """Convert a FORMATS.md plots table; unknown sensors and non-finite values raise ValueError."""
+    def from_frame(frame: pd.DataFrame, sensors: SensorSet | None, source: str = "plots", first_row: int = 0) -> "PlotColumns":
+        """Convert a FORMATS.md plots table; bad values raise ValueError naming the row and column.
+
+        ``first_row`` is the row number of the frame's first row in the whole input (chunks).
+        Checked here (the io readers check more): unknown sensors, non-finite or negative
+        ranges, non-finite times and azimuths, and 3-D radar plots without an elevation.
+        """
         count = len(frame)
         missing = [c for c in ("time", "sensor", "range_m", "azimuth_deg") if c not in frame.columns]
         if missing:
@@ -71,7 +76,7 @@ class PlotColumns:
             codes, uniques = pd.factorize(names)
             unknown = [u for u in uniques if u not in lookup]
             if unknown:
-                first = int(np.flatnonzero(names == unknown[0])[0])
+                first = first_row + int(np.flatnonzero(names == unknown[0])[0])
                 raise ValueError(
                     f"{source}, row {first}, column sensor: unknown sensor {unknown[0]!r} "
                     f"(sensors.json has: {', '.join(sensors.names)})"
@@ -104,22 +109,33 @@ class PlotColumns:
             if count
             else np.zeros((0, 6)),
         )
-        for name, values in (("time", plots.time), ("range_m", plots.range_m), ("azimuth_deg", plots.azimuth)):
-            bad = ~np.isfinite(values)
+        problems = (
+            ("time", ~np.isfinite(plots.time), "value is not a finite number"),
+            ("range_m", ~np.isfinite(plots.range_m), "value is not a finite number"),
+            ("range_m", plots.range_m < 0, "value is negative"),
+            ("azimuth_deg", ~np.isfinite(plots.azimuth), "value is not a finite number"),
+        )
+        if sensors is not None and count:
+            is_3d = np.array([s.is_3d for s in sensors.sensors])[sensor_index]
+            problems += (("elevation_deg", is_3d & ~np.isfinite(plots.elevation), "value is missing for a radar-3d plot"),)
+        for name, bad, what in problems:
             if bad.any():
                 row = int(np.flatnonzero(bad)[0])
-                raise ValueError(f"{source}, row {row}, column {name}: value is not a finite number")
+                given = frame[name].iloc[row] if name in frame.columns else None
+                shown = "" if given is None else f" (got {given})"
+                raise ValueError(f"{source}, row {first_row + row}, column {name}: {what}{shown}")
         return plots
 
 
-def check_time_order(plots: PlotColumns, sensors: SensorSet, last_times: np.ndarray, source: str = "plots") -> None:
+def check_time_order(plots: PlotColumns, sensors: SensorSet, last_times: np.ndarray, source: str = "plots",
+                     first_row: int = 0) -> None:
     """Raise if time goes backwards within a sensor (across chunks too, via ``last_times``)."""
     for s in np.unique(plots.sensor):
         rows = np.flatnonzero(plots.sensor == s)
         times = np.concatenate([[last_times[s]], plots.time[rows]])
         back = np.flatnonzero(np.diff(times) < 0)
         if back.size:
-            row = int(rows[back[0]])
+            row = first_row + int(rows[back[0]])
             raise ValueError(
                 f"{source}, row {row}, column time: time goes backwards for sensor {sensors.sensors[s].name!r} "
                 f"({times[back[0] + 1]:.6f} s after {times[back[0]]:.6f} s); plots must be sorted by time per sensor"

@@ -34,6 +34,7 @@ from skytrack.association.candidates import candidate_pairs, max_eigenvalue_sym
 from skytrack.association.gnn import assign_gnn
 from skytrack.filters.ekf import predict as kf_predict
 from skytrack.filters.ekf import update as kf_update
+from skytrack.geo.polar import azimuth_of
 from skytrack.geo.sensors import SensorSet
 from skytrack.geo.wgs84 import enu_to_geodetic
 from skytrack.models.measurement import PolarMeasurementModel
@@ -99,6 +100,8 @@ class Tracker:
         self.phase = np.array([np.nan] * n_sensors)
         self.last_time = np.full(n_sensors, -np.inf)
         self.seen = np.zeros(n_sensors, dtype=bool)
+        self.next_window = np.zeros(n_sensors, dtype=np.int64)
+        self.rows_fed = 0
         self.pending = PlotColumns.empty()
         self.output_sensor = sensors.sensors.index(radars[0])
         self.next_output: float | None = None
@@ -130,21 +133,28 @@ class Tracker:
         return self.drain()
 
     def feed(self, frame: pd.DataFrame, source: str = "plots") -> None:
-        """Add a chunk of plots (sorted by time per sensor) and process every complete window."""
-        chunk = PlotColumns.from_frame(frame, self.sensors, source)
+        """Add a chunk of plots (sorted by time per sensor) and process every complete window.
+
+        Errors name rows of the whole input: chunks are numbered on from earlier ones.
+        """
+        chunk = PlotColumns.from_frame(frame, self.sensors, source, first_row=self.rows_fed)
+        check_time_order(chunk, self.sensors, self.last_time, source, first_row=self.rows_fed)
+        self.rows_fed += len(frame)
         if len(chunk) == 0:
             return
-        check_time_order(chunk, self.sensors, self.last_time, source)
-        self.seen[np.unique(chunk.sensor)] = True
+        new_sensors = np.unique(chunk.sensor)
         self._settle_phases(chunk)
+        for s in new_sensors[~self.seen[new_sensors]]:
+            first = chunk.time[chunk.sensor == s].min()
+            self.next_window[s] = self._window_index(s, first)
+        self.seen[new_sensors] = True
         self.pending = PlotColumns.concat([self.pending, chunk])
         self.stats["plots"] += len(chunk)
-        watermark = float(np.min(self.last_time[self.seen]))
-        self._process_pending(watermark)
+        self._process_pending(final=False)
 
     def finish(self) -> None:
         """Process the remaining plots and emit the last output instants."""
-        self._process_pending(np.inf)
+        self._process_pending(final=True)
         self._emit_until(self.last_window_end)
 
     def drain(self) -> pd.DataFrame:
@@ -178,31 +188,63 @@ class Tracker:
                     estimate = given % self.period[s]
             self.phase[s] = estimate
 
-    def _window_starts(self, plots: PlotColumns) -> np.ndarray:
-        phase = np.nan_to_num(self.phase[plots.sensor])
-        length = self.window_length[plots.sensor]
-        return phase + np.floor((plots.time - phase) / length) * length
+    def _window_index(self, s, time):
+        """Index of the processing window of sensor(s) ``s`` holding ``time``."""
+        phase = np.nan_to_num(self.phase[s])
+        return np.floor((np.asarray(time) - phase) / self.window_length[s]).astype(np.int64)
 
-    def _process_pending(self, watermark: float) -> None:
+    def _window_start(self, s, index):
+        return np.nan_to_num(self.phase[s]) + index * self.window_length[s]
+
+    def _process_pending(self, final: bool) -> None:
+        """Process, in order of start time, every window that can no longer receive plots.
+
+        A window of sensor s is complete once a later plot of s has arrived; windows of all
+        sensors are taken in start order, stopping at the first incomplete one, so the order
+        never depends on how the input was chunked.  Windows without plots are processed
+        too: tracks expected in them record their misses.  At ``final`` every sensor's
+        windows up to its last plot are complete.
+        """
+        sensors = np.flatnonzero(self.seen)
+        if len(sensors) == 0:
+            return
+        last = self._window_index(sensors, self.last_time[sensors])
+        # the window holding a sensor's latest plot may still grow, unless this is the end
+        complete_until = last if final else last - 1
+        first = self.next_window[sensors]
+        counts = np.maximum(complete_until - first + 1, 0)
+        if counts.sum() == 0:
+            return
+        window_sensor = np.repeat(sensors, counts)
+        window_index = np.repeat(first, counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts))
+        window_start = self._window_start(window_sensor, window_index)
+        if not final:
+            # the first incomplete window of each sensor bounds what may be processed now
+            blocking_start = self._window_start(sensors, complete_until + 1)
+            limit = (blocking_start.min(), sensors[np.argmin(blocking_start)])
+            allowed = (window_start < limit[0]) | ((window_start == limit[0]) & (window_sensor < limit[1]))
+            window_sensor, window_index, window_start = window_sensor[allowed], window_index[allowed], window_start[allowed]
+        order = np.lexsort((window_sensor, window_start))
+        window_sensor, window_index, window_start = window_sensor[order], window_index[order], window_start[order]
         plots = self.pending
-        if len(plots) == 0:
-            return
-        starts = self._window_starts(plots)
-        ends = starts + self.window_length[plots.sensor]
-        complete = ends <= watermark
-        if not complete.any():
-            return
-        order = np.lexsort((plots.time, plots.sensor, starts))
-        order = order[complete[order]]
-        keys = np.column_stack([starts[order], plots.sensor[order]])
-        boundaries = np.flatnonzero(np.any(keys[1:] != keys[:-1], axis=1)) + 1
-        for group in np.split(order, boundaries):
-            window_start = float(starts[group[0]])
-            self._emit_until(window_start)
-            window_end = float(ends[group[0]])
-            self._process_window(int(plots.sensor[group[0]]), window_start, window_end, plots.take(group))
-            self.last_window_end = max(self.last_window_end, window_end)
-        self.pending = plots.take(np.flatnonzero(~complete))
+        plot_window = self._window_index(plots.sensor, plots.time)
+        plot_order = np.lexsort((plots.time, plot_window, plots.sensor))
+        keys_sensor = plots.sensor[plot_order]
+        keys_window = plot_window[plot_order]
+        taken = np.zeros(len(plots), dtype=bool)
+        for s, k, start in zip(window_sensor.tolist(), window_index.tolist(), window_start.tolist()):
+            lo = np.searchsorted(keys_sensor, s, side="left")
+            hi = np.searchsorted(keys_sensor, s, side="right")
+            a = lo + np.searchsorted(keys_window[lo:hi], k, side="left")
+            b = lo + np.searchsorted(keys_window[lo:hi], k, side="right")
+            rows = plot_order[a:b]
+            taken[rows] = True
+            end = start + self.window_length[s]
+            self._emit_until(start)
+            self._process_window(s, start, end, plots.take(rows))
+            self.last_window_end = max(self.last_window_end, end)
+            self.next_window[s] = k + 1
+        self.pending = plots.take(np.flatnonzero(~taken))
 
     # ------------------------------------------------------------------ one window
     def _process_window(self, s: int, w_start: float, w_end: float, plots: PlotColumns) -> None:
@@ -210,7 +252,7 @@ class Tracker:
         sensor = self.sensors.sensors[s]
         self.stats["windows"] += 1
         if self.next_output is None:
-            self._init_outputs(float(plots.time.min()))
+            self._init_outputs(float(plots.time.min()) if len(plots) else w_start)
         has_mode_c = np.isfinite(plots.mode_c_m)
         altitude = np.where(has_mode_c, plots.mode_c_m, cfg.default_altitude_m)
         altitude_sigma = np.where(has_mode_c, cfg.mode_c_sigma_m, cfg.default_altitude_sigma_m)
@@ -261,7 +303,7 @@ class Tracker:
         ground = np.hypot(local[:, 0], local[:, 1])
         if self.rotating[s]:
             period = self.period[s]
-            azimuth = np.remainder(np.arctan2(local[:, 0], local[:, 1]), 2 * np.pi)
+            azimuth = azimuth_of(local[:, 0], local[:, 1])
             t_ref = beam_crossing_time(azimuth, self.phase[s], period, w_start)
             expected = t_ref < w_end
             # tracks crossed just outside a sector may still have their plot in it
@@ -269,9 +311,10 @@ class Tracker:
             nearby = expected | (t_ref >= w_start + period - margin) | (t_ref < w_end + margin)
             t_ref = np.where(expected, t_ref, np.clip(t_ref - np.where(t_ref >= w_start + period - margin, period, 0.0), w_start, w_end))
         else:
+            # without an antenna schedule there is no telling which track is due: no misses
             t_ref = np.full(len(bank), mid)
-            expected = np.ones(len(bank), dtype=bool)
-            nearby = expected
+            expected = np.zeros(len(bank), dtype=bool)
+            nearby = np.ones(len(bank), dtype=bool)
         if sensor.max_range_m:
             # out of this sensor's range no plot is due, unless no sensor covers the track:
             # then the misses pile up and the track is deleted (it has left the coverage)
@@ -351,7 +394,8 @@ class Tracker:
         dt = plots.time[pj] - bank.t[ti]
         F, Q = self._transition(dt, ti, manoeuvre)
         x_pred, P_pred = kf_predict(bank.x[ti], bank.P[ti], F, Q)
-        z, R = self._pair_measurements(sensor, ti, pj, plots, converted)
+        pair_position, pair_covariance = self._pair_measurements(sensor, ti, pj, plots, converted)
+        z, R = pair_position[:, :dim], pair_covariance[:, :dim, :dim]
         n_state = self.model.dim
         use_rdot = (dim == 3 and cfg.use_range_rate and sensor.sigma_range_rate_mps is not None)
         m = dim + (1 if use_rdot else 0)
@@ -372,6 +416,7 @@ class Tracker:
             return np.zeros(0, np.intp), np.zeros(0, np.intp)
         ti, pj, d2 = ti[inside], pj[inside], d2[inside]
         x_pred, P_pred, H, nu, R_full = x_pred[inside], P_pred[inside], H[inside], nu[inside], R_full[inside]
+        pair_position, pair_covariance = pair_position[inside], pair_covariance[inside]
         # --- global nearest neighbour per cluster; leaving a track unassigned costs its gate
         chosen = assign_gnn(ti, pj, d2, len(bank), len(plots), miss_cost=self._max_gate)
         ti, pj = ti[chosen], pj[chosen]
@@ -382,7 +427,7 @@ class Tracker:
         else:
             self._detect_manoeuvres(ti, d2[chosen] / n_measured[inside][chosen])
         result = kf_update(x_pred[chosen], P_pred[chosen], nu[chosen], H[chosen], R_full[chosen])
-        self._write_updates(ti, pj, result.x, result.P, plots, converted)
+        self._write_updates(ti, pj, result.x, result.P, plots, pair_position[chosen], pair_covariance[chosen])
         return ti, pj
 
     def _detect_manoeuvres(self, tracks: np.ndarray, nis: np.ndarray) -> None:
@@ -397,7 +442,8 @@ class Tracker:
         bank.manoeuvring[tracks] = np.where(flag, smoothed > cfg.manoeuvre_off_nis, smoothed > cfg.manoeuvre_on_nis)
 
     def _pair_measurements(self, sensor, ti, pj, plots: PlotColumns, converted):
-        """Converted position per pair; a 2-D plot without Mode C uses its track's altitude."""
+        """Converted 3-D position and covariance per pair; a 2-D plot without Mode C is
+        placed at its track's last Mode C altitude when the track has one."""
         position = converted.position[pj]
         covariance = converted.covariance[pj]
         if not sensor.is_3d:
@@ -412,8 +458,7 @@ class Tracker:
                 covariance = covariance.copy()
                 position[reuse] = redo.position
                 covariance[reuse] = redo.covariance
-        dim = self.dim
-        return position[:, :dim], covariance[:, :dim, :dim]
+        return position, covariance
 
     def _add_range_rate(self, sensor, x_pred, plots: PlotColumns, pj, H, nu, R_full, n_measured):
         """Append the Doppler range rate (spec 000 R9) to pairs whose plot carries one."""
@@ -429,20 +474,22 @@ class Tracker:
         R_full[:, -1, -1] = np.where(has, sensor.sigma_range_rate_mps**2, 1.0)
         n_measured[has] += 1
 
-    def _write_updates(self, ti, pj, x_new, P_new, plots: PlotColumns, converted) -> None:
+    def _write_updates(self, ti, pj, x_new, P_new, plots: PlotColumns, position, covariance) -> None:
+        """Store updated states and attributes; ``position``/``covariance`` are the pairs' plots."""
         bank = self.bank
         cfg = self.config
         if cfg.init == "two-point":
             second = (bank.n_updates[ti] == 1) & (bank.status[ti] == TENTATIVE)
             if second.any():
                 x_new, P_new = x_new.copy(), P_new.copy()
-                self._two_point(ti[second], pj[second], plots, converted, x_new, P_new, second)
+                self._two_point(ti[second], plots.time[pj[second]], position[second], covariance[second],
+                                x_new, P_new, second)
         bank.x[ti] = x_new
         bank.P[ti] = P_new
         bank.t[ti] = plots.time[pj]
         bank.n_updates[ti] += 1
         bank.n_misses[ti] = 0
-        bank.z_hint[ti] = converted.position[pj, 2]
+        bank.z_hint[ti] = position[:, 2]
         mode_c = plots.mode_c_m[pj]
         bank.alt_m[ti] = np.where(np.isfinite(mode_c), mode_c, bank.alt_m[ti])
         for attribute, values in (("mode3a", plots.mode3a), ("icao24", plots.mode_s), ("iff", plots.iff)):
@@ -451,13 +498,13 @@ class Tracker:
             column = getattr(bank, attribute)
             column[ti[known]] = new[known]
 
-    def _two_point(self, ti, pj, plots, converted, x_new, P_new, rows) -> None:
+    def _two_point(self, ti, times, position, covariance, x_new, P_new, rows) -> None:
         """Replace the state after a tentative track's second plot by the two-point difference."""
         bank = self.bank
         dim, n = self.dim, self.model.dim
-        dt = np.maximum(plots.time[pj] - bank.t[ti], 1e-3)
-        z2 = converted.position[pj][:, :dim]
-        R2 = converted.covariance[pj][:, :dim, :dim]
+        dt = np.maximum(times - bank.t[ti], 1e-3)
+        z2 = position[:, :dim]
+        R2 = covariance[:, :dim, :dim]
         z1 = bank.x[ti][:, self.pos_idx]
         R1 = bank.P[ti][:, self.pos_idx[:, None], self.pos_idx]
         x = np.zeros((len(ti), n))
@@ -606,14 +653,19 @@ class Tracker:
 
 
 def _empty_tracks(full_covariance: bool, dim: int, order: int) -> pd.DataFrame:
-    frame = pd.DataFrame({c: pd.Series(dtype=float) for c in TRACK_OUTPUT_COLUMNS})
-    frame["track_id"] = frame["track_id"].astype("int64")
+    """A tracks table without rows, with the dtypes of a full one (so chunks concatenate)."""
+    integer = {"track_id", "n_updates", "n_misses"}
+    text = {"mode3a", "icao24", "callsign", "iff", "model_probs"}
+    columns = {
+        c: pd.Series(dtype="int64" if c in integer else object if c in text else "str" if c == "status" else float)
+        for c in TRACK_OUTPUT_COLUMNS
+    }
     if full_covariance:
         n = dim * order
         for i in range(n):
             for j in range(i, n):
-                frame[f"cov_{i}_{j}"] = pd.Series(dtype=float)
-    return frame
+                columns[f"cov_{i}_{j}"] = pd.Series(dtype=float)
+    return pd.DataFrame(columns)
 
 
 def track_plots(plots: pd.DataFrame, sensors: SensorSet, config: TrackerConfig | None = None,

@@ -1,0 +1,167 @@
+"""Tracker building blocks: configuration checks, the structure-of-arrays track bank, plot
+columns, beam phase and beam-crossing times (skytrack.tracker.config / bank / plots)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skytrack.geo.sensors import Sensor, SensorSet
+from skytrack.models.motion import ConstantVelocityAxis, SingerAxisModel
+from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
+from skytrack.tracker.config import TrackerConfig
+from skytrack.tracker.plots import (
+    FT_TO_M,
+    PlotColumns,
+    beam_crossing_time,
+    check_time_order,
+    estimate_beam_phase,
+)
+from skytrack.tracker.tracker import Tracker
+
+# ----------------------------------------------------------------------------- configuration
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(model="imm"), "model must be one of"),
+    (dict(init="three-point"), "init must be one of"),
+    (dict(discretization="exactish"), "discretization"),
+    (dict(p_gate=1.0), "p_gate must be in"),
+    (dict(p_gate=0.0), "p_gate must be in"),
+    (dict(gate_threshold=0.0), "gate_threshold must be > 0"),
+    (dict(confirm_m=5, confirm_n=4), "confirm_m <= confirm_n"),
+    (dict(confirm_m=0), "1 <= confirm_m"),
+    (dict(confirm_n=33, confirm_m=3), "<= 32"),
+    (dict(delete_misses=0), "delete_misses must be >= 1"),
+    (dict(tracking_dim=1), "tracking_dim must be 2, 3 or None"),
+    (dict(init_sigma_v=-1.0), "init_sigma_v must be finite and > 0"),
+    (dict(window_s=np.inf), "window_s must be finite and > 0"),
+    (dict(cv_q=-0.1), "cv_q must be finite and >= 0"),
+    (dict(singer_sigma_a=np.nan), "singer_sigma_a must be finite and >= 0"),
+    (dict(manoeuvre_q_scale=0.5), "manoeuvre_q_scale must be >= 1"),
+    (dict(manoeuvre_memory=1.0), "manoeuvre_memory must be in"),
+    (dict(manoeuvre_on_nis=1.0, manoeuvre_off_nis=2.0), "manoeuvre_off_nis <= manoeuvre_on_nis"),
+    (dict(sectors_per_scan=0), "sectors_per_scan must be >= 1"),
+    (dict(output_interval_s=0.0), "output_interval_s must be > 0"),
+])
+def test_config_rejects_bad_values(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        TrackerConfig(**kwargs)
+
+
+def test_config_motion_models():
+    cv = TrackerConfig(model="cv", cv_q=2.5).motion_model(2)
+    assert cv.dim == 4 and cv.axes[0] == ConstantVelocityAxis(2.5)
+    singer = TrackerConfig(model="singer", singer_tau_s=30.0, singer_sigma_a=3.0, discretization="paper").motion_model(3)
+    assert singer.dim == 9 and singer.axes[2] == SingerAxisModel(30.0, 3.0, "paper")
+    assert TrackerConfig().to_dict()["confirm_m"] == 3
+
+
+def test_gate_threshold_is_the_chi_square_quantile(sim, radar1):
+    """Spec 000 TV12: P_G = 0.99 gives chi^2_2 = 9.21034037197618, chi^2_3 = 11.344866730144373."""
+    tracker = Tracker(sim.sensor_set([radar1]), TrackerConfig(p_gate=0.99))
+    assert tracker.gate(2) == pytest.approx(9.21034037197618, rel=1e-12)
+    assert tracker.gate(3) == pytest.approx(11.344866730144373, rel=1e-12)
+    fixed = Tracker(sim.sensor_set([radar1]), TrackerConfig(gate_threshold=16.0))
+    assert fixed.gate(2) == fixed.gate(4) == 16.0
+
+
+def test_tracker_refuses_sensor_sets_it_cannot_use(sim, radar1):
+    adsb_only = SensorSet(sim.ORIGIN, [Sensor("adsb", type="adsb")])
+    with pytest.raises(ValueError, match="no radar"):
+        Tracker(adsb_only)
+    with pytest.raises(ValueError, match="'radar1'.*sigma_range_m and sigma_azimuth_deg"):
+        Tracker(sim.sensor_set([radar1], sigma_range_m=None))
+    three_d = sim.Radar(**{**radar1.__dict__, "type": "radar-3d"})
+    with pytest.raises(ValueError, match="'radar1' is radar-3d but has no sigma_elevation_deg"):
+        Tracker(sim.sensor_set([three_d]))
+
+
+def test_tracking_dimension_follows_the_radars(sim, radar1):
+    three_d = sim.Radar(**{**radar1.__dict__, "name": "r3", "type": "radar-3d", "sigma_elevation_deg": 0.2})
+    assert Tracker(sim.sensor_set([radar1])).dim == 2
+    assert Tracker(sim.sensor_set([three_d])).dim == 3
+    assert Tracker(sim.sensor_set([radar1, three_d])).dim == 2
+    assert Tracker(sim.sensor_set([radar1]), TrackerConfig(tracking_dim=3)).dim == 3
+
+
+# ----------------------------------------------------------------------------- track bank
+
+
+def test_bank_append_defaults_and_keep():
+    bank = TrackBank(4)
+    assert len(bank) == 0
+    bank.append(np.arange(8.0).reshape(2, 4), np.broadcast_to(np.eye(4), (2, 4, 4)).copy(),
+                t=np.array([1.0, 2.0]), track_id=np.array([7, 8]), status=TENTATIVE, mode3a=np.array(["1234", None]))
+    bank.append(np.ones((1, 4)), np.eye(4)[None], t=np.array([3.0]), track_id=np.array([9]), status=CONFIRMED)
+    assert len(bank) == 3
+    np.testing.assert_array_equal(bank.track_id, [7, 8, 9])
+    np.testing.assert_array_equal(bank.status, [TENTATIVE, TENTATIVE, CONFIRMED])
+    assert bank.track_id.dtype == np.int64 and bank.hit_bits.dtype == np.uint32
+    assert np.isnan(bank.alt_m).all() and np.isnan(bank.confirmed_at).all()  # NaN defaults
+    np.testing.assert_array_equal(bank.n_updates, [0, 0, 0])
+    assert list(bank.mode3a) == ["1234", None, None]
+    bank.keep(np.array([True, False, True]))
+    np.testing.assert_array_equal(bank.track_id, [7, 9])
+    np.testing.assert_array_equal(bank.x, [[0.0, 1.0, 2.0, 3.0], [1.0, 1.0, 1.0, 1.0]])
+    assert bank.P.shape == (2, 4, 4) and list(bank.mode3a) == ["1234", None]
+    bank.append(np.zeros((0, 4)), np.zeros((0, 4, 4)))  # appending nothing is a no-op
+    assert len(bank) == 2
+
+
+# ----------------------------------------------------------------------------- plot columns
+
+
+def test_plot_columns_units_and_optional_columns(sim, radar1):
+    sensors = sim.sensor_set([radar1])
+    frame = pd.DataFrame({
+        "time": [0.5, 1.0], "sensor": ["radar1", "radar1"], "range_m": [1000.0, 2000.0],
+        "azimuth_deg": [90.0, 180.0], "mode_c_ft": [10000.0, None], "mode3a": ["7000", None],
+        "elevation_deg": [1.0, np.nan],
+    })
+    plots = PlotColumns.from_frame(frame, sensors)
+    np.testing.assert_allclose(plots.azimuth, [np.pi / 2, np.pi])
+    np.testing.assert_allclose(plots.elevation, [np.radians(1.0), np.nan])
+    np.testing.assert_allclose(plots.mode_c_m, [10000.0 * FT_TO_M, np.nan])
+    assert FT_TO_M == 0.3048
+    assert np.isnan(plots.range_rate).all() and plots.platform.shape == (2, 6) and np.isnan(plots.platform).all()
+    assert list(plots.mode3a) == ["7000", None] and list(plots.iff) == [None, None]
+    np.testing.assert_array_equal(plots.sensor, [0, 0])
+    both = PlotColumns.concat([plots, plots.take(np.array([1]))])
+    assert len(both) == 3 and both.mode3a[2] is None
+
+
+def test_check_time_order_names_the_row_and_remembers_the_last_time(sim, radar1):
+    sensors = sim.sensor_set([radar1])
+    last = np.full(1, -np.inf)
+    ok = PlotColumns.from_frame(pd.DataFrame({"time": [1.0, 2.0, 2.0], "sensor": "radar1", "range_m": 1.0,
+                                              "azimuth_deg": 0.0}), sensors)
+    check_time_order(ok, sensors, last)
+    assert last[0] == 2.0
+    later = PlotColumns.from_frame(pd.DataFrame({"time": [3.0, 1.5], "sensor": "radar1", "range_m": 1.0,
+                                                 "azimuth_deg": 0.0}), sensors)
+    with pytest.raises(ValueError, match=r"myfile, row 1, column time: .*1\.500000 s after 3\.000000 s"):
+        check_time_order(later, sensors, last, source="myfile")
+
+
+@pytest.mark.parametrize("phase", [0.0, 1.3, 3.97, 0.02])
+def test_estimate_beam_phase_recovers_the_phase(phase):
+    """Plots at the beam-crossing times of random azimuths, with 0.05 deg azimuth noise;
+    the phase is found modulo the period, including next to the wrap (3.97 s and 0.02 s)."""
+    rng = np.random.default_rng(int(phase * 100))
+    period = 4.0
+    az = rng.uniform(0, 2 * np.pi, 60)
+    time = phase + (rng.integers(0, 20, 60) + az / (2 * np.pi)) * period
+    measured = np.remainder(az + np.radians(0.05) * rng.standard_normal(60), 2 * np.pi)
+    estimate = estimate_beam_phase(time, measured, period)
+    assert 0.0 <= estimate < period
+    gap = (estimate - phase + period / 2) % period - period / 2
+    assert abs(gap) < 3 * np.radians(0.05) / (2 * np.pi) * period / np.sqrt(60) + 1e-9
+
+
+def test_beam_crossing_time():
+    period, phase = 4.0, 1.0
+    az = np.array([0.0, np.pi / 2, np.pi, 1.5 * np.pi])
+    t = beam_crossing_time(az, phase, period, window_start=9.5)
+    # the beam points at az at phase + (k + az / 2 pi) period: 9.0 + {0, 1, 2, 3} -> first >= 9.5
+    np.testing.assert_allclose(t, [13.0, 10.0, 11.0, 12.0])
+    assert np.all((t >= 9.5) & (t < 9.5 + period))
