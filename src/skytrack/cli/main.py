@@ -182,29 +182,35 @@ def _parse_confirm(text: str) -> tuple[int, int]:
 
 def run_tracking(plots_path: Path, sensors_path: Path, out: Path, config, *, lenient: bool = False,
                  chunk_rows: int = 200_000) -> dict:
-    """Read, track in chunks, and write tracks incrementally; returns a summary dict."""
-    from skytrack.io import read_plots, read_sensors
+    """Read plots in chunks, track them and write tracks incrementally; returns a summary.
+
+    Memory is bounded by one chunk of plots plus the live tracks (Parquet input is
+    streamed; CSV input is read whole first).
+    """
+    from skytrack.io import ReadReport, iter_plots, read_sensors
+    from skytrack.io.tables import count_rows
     from skytrack.io.tracks import TrackWriter
     from skytrack.tracker import Tracker
 
     sensor_set = read_sensors(sensors_path)
-    loaded = read_plots(plots_path, sensors=sensor_set, lenient=lenient)
-    plots, report = loaded if lenient else (loaded, None)
+    report = ReadReport(file=str(plots_path)) if lenient else None
+    total = count_rows(plots_path)
     tracker = Tracker(sensor_set, config)
     started = time.perf_counter()
-    total = len(plots)
+    plots_read = 0
     with TrackWriter(out) as writer, _progress() as progress:
-        task = progress.add_task("track", total=max(total, 1))
-        for start in range(0, total, chunk_rows):
-            tracker.feed(plots.iloc[start : start + chunk_rows], source=str(plots_path))
+        task = progress.add_task("track", total=total)
+        for chunk in iter_plots(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
+            tracker.feed(chunk, source=str(plots_path))
             writer.write(tracker.drain())
-            progress.update(task, completed=min(total, start + chunk_rows))
+            plots_read += len(chunk)
+            progress.update(task, completed=plots_read, total=total or plots_read)
         tracker.finish()
         writer.write(tracker.drain())
-        progress.update(task, completed=max(total, 1))
+        progress.update(task, completed=plots_read, total=total or plots_read)
     elapsed = time.perf_counter() - started
     return {
-        "plots": total, "tracks_file": str(out), "track_rows": writer.rows, "elapsed_s": elapsed,
+        "plots": plots_read, "tracks_file": str(out), "track_rows": writer.rows, "elapsed_s": elapsed,
         "stats": dict(tracker.stats), "warnings": list(tracker.warnings), "report": report,
         "tracking_dim": tracker.dim,
     }
@@ -227,7 +233,7 @@ def _print_tracking_summary(summary: dict) -> None:
         table.add_row("plots placed over the radar", f"{stats['plots_height_above_slant_range']} (height above slant range)")
     table.add_row("tracking", f"{summary['tracking_dim']}-D")
     table.add_row("track rows written", f"{summary['track_rows']} -> {summary['tracks_file']}")
-    table.add_row("time", f"{summary['elapsed_s']:.2f} s ({rate:,.0f} plots/s incl. reading chunks)")
+    table.add_row("time", f"{summary['elapsed_s']:.2f} s ({rate:,.0f} plots/s, reading and writing included)")
     console.print(table)
 
 

@@ -40,7 +40,7 @@ from skytrack.io.checks import (
 )
 from skytrack.io.errors import ReadReport
 from skytrack.io.schema import PLOT_SCHEMA
-from skytrack.io.tables import TableSource, load_table, write_table
+from skytrack.io.tables import TableSource, iter_parquet, load_table, table_format, write_table
 
 
 def _validate_plots(
@@ -125,6 +125,37 @@ def read_plots(path, sensors=None, lenient=False, *, epoch_utc=None):
     plots = _validate_plots(df, source, sensors, epoch_utc, lenient, report)
     emit_warnings(report, lenient)
     return (plots, report) if lenient else plots
+
+
+def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None, report=None):
+    """Read and validate a plots table chunk by chunk; yields DataFrames of at most ``chunk_rows``.
+
+    Parquet files are streamed (memory bounded by the chunk); CSV files are read whole and
+    then handed out in chunks.  Errors name rows of the whole file.  In lenient mode pass a
+    :class:`ReadReport` as ``report``: skips of every chunk are added to it.  Time order is
+    checked within chunks here; across chunk boundaries the tracker checks it.
+    """
+    report = report if report is not None else ReadReport(file=str(path))
+    if table_format(path) == "parquet":
+        kept = 0
+        for frame, source in iter_parquet(path, chunk_rows):
+            report.rows_read += len(frame)
+            plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report)
+            kept += len(plots)
+            report.rows_kept = kept  # the validator sets the count of its own chunk
+            yield plots
+    else:
+        plots = read_plots(path, sensors, lenient, epoch_utc=epoch_utc)
+        if lenient:
+            plots, whole = plots
+            report.rows_read += whole.rows_read
+            report.rows_kept += whole.rows_kept
+            report.skipped.update(whole.skipped)
+            report.warnings.extend(whole.warnings)
+        for start in range(0, len(plots), chunk_rows):
+            yield plots.iloc[start : start + chunk_rows]
+        return
+    emit_warnings(report, lenient)
 
 
 def write_plots(df: pd.DataFrame, path: str | Path, *, sensors: SensorSet | None = None) -> Path:

@@ -71,6 +71,7 @@ class TableSource:
     is_csv: bool = False
     n_fields: int = 0
     n_invalid_lines: int = 0
+    row_offset: int = 0  # rows of the file before this DataFrame's first row (chunked reading)
     _simple_layout: bool | None = field(default=None, repr=False)
     _scanned_lines: list[int] = field(default_factory=list, repr=False)
     _invalid_lines: list[tuple[int, int]] = field(default_factory=list, repr=False)
@@ -82,12 +83,13 @@ class TableSource:
 
     def error(self, message: str, *, row: int | None = None, column: str | None = None, more: int = 0) -> InputError:
         line = self.lines([row])[0] if row is not None else None
+        row = None if row is None else row + self.row_offset
         return InputError(message, file=self.display, row=row, line=line, column=column, more=more)
 
     def issues(self, rows: Sequence[int], column: str | None, messages: Sequence[str]) -> list[InputError]:
         lines = self.lines(rows)
         return [
-            InputError(m, file=self.display, row=int(r), line=ln, column=column)
+            InputError(m, file=self.display, row=int(r) + self.row_offset, line=ln, column=column)
             for r, ln, m in zip(rows, lines, messages, strict=True)
         ]
 
@@ -181,13 +183,50 @@ def _check_exists(path: Path) -> None:
         raise InputError("file not found", file=str(path))
 
 
+def _parquet_error(path: Path, exc: Exception) -> InputError:
+    reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return InputError(f"not a readable Parquet file ({reason})", file=str(path))
+
+
 def _read_parquet(path: Path) -> pd.DataFrame:
     try:
         table = pq.read_table(path)
         return table.to_pandas(types_mapper=_string_mapper)
     except (pa.ArrowException, OSError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"not a readable Parquet file ({reason})", file=str(path)) from None
+        raise _parquet_error(path, exc) from None
+
+
+def iter_parquet(path: str | Path, chunk_rows: int) -> Iterator[tuple[pd.DataFrame, TableSource]]:
+    """Read a Parquet file in chunks of at most ``chunk_rows`` rows (bounded memory).
+
+    Each chunk comes with a :class:`TableSource` whose ``row_offset`` makes error messages
+    name rows of the whole file.
+    """
+    path = Path(path)
+    _check_exists(path)
+    offset = 0
+    try:
+        parquet = pq.ParquetFile(path)
+        for batch in parquet.iter_batches(batch_size=chunk_rows):
+            frame = batch.to_pandas(types_mapper=_string_mapper)
+            source = TableSource(display=str(path), path=path, row_offset=offset)
+            _check_unique_columns(frame, source)
+            yield frame, source
+            offset += len(frame)
+    except (pa.ArrowException, OSError) as exc:
+        raise _parquet_error(path, exc) from None
+
+
+def count_rows(path: str | Path) -> int | None:
+    """Rows of a Parquet file from its metadata (None for other formats)."""
+    path = Path(path)
+    if table_format(path) != "parquet":
+        return None
+    _check_exists(path)
+    try:
+        return pq.ParquetFile(path).metadata.num_rows
+    except (pa.ArrowException, OSError) as exc:
+        raise _parquet_error(path, exc) from None
 
 
 def _csv_header(path: Path) -> list[str]:
