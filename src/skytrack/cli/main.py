@@ -20,6 +20,7 @@ from rich.table import Table
 
 from skytrack import __version__
 from skytrack.cli.study import study_app
+from skytrack.tracker.config import TrackerConfig
 
 app = typer.Typer(
     name="skytrack",
@@ -31,6 +32,8 @@ app = typer.Typer(
 app.add_typer(study_app, name="study")
 
 console = Console()
+#: the CLI shows the library defaults; one source of truth
+_DEFAULTS = TrackerConfig()
 error_console = Console(stderr=True)
 
 
@@ -139,27 +142,25 @@ def track(
     plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
     sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv).")],
-    model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = "cv",
-    q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = 0.5,
-    tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = 20.0,
-    sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = 4.0,
-    discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = "exact",
-    manoeuvre_scale: Annotated[float, typer.Option(help="Process-noise factor while a track manoeuvres (1 = off).")] = 3000.0,
-    p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = 0.9995,
+    model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = _DEFAULTS.model,
+    q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = _DEFAULTS.cv_q,
+    tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = _DEFAULTS.singer_tau_s,
+    sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = _DEFAULTS.singer_sigma_a,
+    discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = _DEFAULTS.discretization,
+    manoeuvre_scale: Annotated[float, typer.Option(help="Process-noise factor while a track manoeuvres (1 = off).")] = _DEFAULTS.manoeuvre_q_scale,
+    p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = _DEFAULTS.p_gate,
     gate_threshold: Annotated[Optional[float], typer.Option(help="Gate threshold g (overrides --p-gate).")] = None,
-    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = "3/4",
-    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = 5,
-    init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = "one-point",
+    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = f"{_DEFAULTS.confirm_m}/{_DEFAULTS.confirm_n}",
+    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = _DEFAULTS.delete_misses,
+    init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = _DEFAULTS.init,
     tracking_dim: Annotated[Optional[int], typer.Option(help="2 (horizontal) or 3; default from the radars.")] = None,
-    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = 6000.0,
+    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = _DEFAULTS.default_altitude_m,
     output_interval: Annotated[Optional[float], typer.Option(help="Report tracks every N s (default: each scan of the first radar).")] = None,
     full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
     chunk_rows: Annotated[int, typer.Option(help="Plots processed per chunk (bounds memory).")] = 200_000,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
-    from skytrack.tracker import TrackerConfig
-
     confirm_m, confirm_n = _parse_confirm(confirm)
     config = TrackerConfig(
         model=model, cv_q=q, singer_tau_s=tau, singer_sigma_a=sigma_a, discretization=discretization,
