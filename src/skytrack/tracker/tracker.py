@@ -28,9 +28,9 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
 from skytrack.association.candidates import candidate_pairs, max_eigenvalue_sym
+from skytrack.association.gate import gate_threshold
 from skytrack.association.gnn import assign_gnn
 from skytrack.filters.ekf import predict as kf_predict
 from skytrack.filters.ekf import update as kf_update
@@ -118,7 +118,7 @@ class Tracker:
         if self.config.gate_threshold is not None:
             return self.config.gate_threshold
         if m not in self._gate_cache:
-            self._gate_cache[m] = float(chi2.ppf(self.config.p_gate, m))
+            self._gate_cache[m] = float(gate_threshold(m, self.config.p_gate))
         return self._gate_cache[m]
 
     def run(self, plots: pd.DataFrame, progress: Callable[[float], None] | None = None,
