@@ -289,7 +289,7 @@ class Tracker:
                 plot_used[assigned_plots] = True
             self._record_events(hit, expected)
         self.stats["plots_assigned"] += int(plot_used.sum())
-        self._initiate(s, plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
+        self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         self._manage()
 
     def _expectations(self, s: int, w_start: float, w_end: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -535,7 +535,7 @@ class Tracker:
         bank.n_misses[:n][missed] += 1
         self.stats["misses"] += int(missed.sum())
 
-    def _initiate(self, s: int, plots: PlotColumns, position: np.ndarray, covariance: np.ndarray) -> None:
+    def _initiate(self, plots: PlotColumns, position: np.ndarray, covariance: np.ndarray) -> None:
         """Start tentative tracks from unassigned plots (one plot, velocity prior)."""
         count = len(plots)
         if count == 0:
