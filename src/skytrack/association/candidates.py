@@ -10,8 +10,6 @@ the pairs within each track's radius; only those pairs get the exact test.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -46,7 +44,7 @@ def candidate_pairs(
     times a safety factor.  Plots with unusually wide uncertainty (above the
     ``wide_quantile`` of the batch, e.g. plots that cannot be placed) are searched
     from their own side so that they do not inflate every track's search radius.
-    Returns two int arrays (track index, plot index).
+    Returns two int arrays (track index, plot index), in no particular order.
     """
     n_tracks, n_plots = len(track_positions), len(plot_positions)
     if n_tracks == 0 or n_plots == 0:
@@ -69,13 +67,14 @@ def candidate_pairs(
 
 
 def _ball_pairs(centres: np.ndarray, radii: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (centre index, point index) with the point within the centre's radius."""
+    """Pairs (centre index, point index) with the point within the centre's radius.
+
+    Two k-d trees are joined at the largest radius in one C call
+    (``sparse_distance_matrix``), then each pair is checked against its own radius.
+    """
     if len(centres) == 0 or len(points) == 0:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty
-    tree = cKDTree(points)
-    hits = tree.query_ball_point(centres, radii, return_sorted=False)
-    counts = np.fromiter(map(len, hits), dtype=np.intp, count=len(centres))
-    found = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.intp, count=int(counts.sum()))
-    owners = np.repeat(np.arange(len(centres), dtype=np.intp), counts)
-    return owners, found
+    found = cKDTree(centres).sparse_distance_matrix(cKDTree(points), float(np.max(radii)), output_type="ndarray")
+    keep = found["v"] <= radii[found["i"]]
+    return found["i"][keep].astype(np.intp), found["j"][keep].astype(np.intp)

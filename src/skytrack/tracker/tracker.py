@@ -106,7 +106,8 @@ class Tracker:
         self.output_sensor = sensors.sensors.index(radars[0])
         self.next_output: float | None = None
         self.last_window_end = -np.inf
-        self.outputs: list[pd.DataFrame] = []
+        # track rows per output instant, as column arrays; one DataFrame is built in drain()
+        self.outputs: list[dict[str, np.ndarray]] = []
         self.stats: Counter = Counter()
         self.warnings: list[str] = []
         self._gate_cache: dict[int, float] = {}
@@ -161,9 +162,8 @@ class Tracker:
         """Track rows produced so far (and forget them)."""
         if not self.outputs:
             return _empty_tracks(self.config.full_covariance, self.dim, self.order)
-        frame = pd.concat(self.outputs, ignore_index=True)
-        self.outputs = []
-        return frame
+        outputs, self.outputs = self.outputs, []
+        return pd.DataFrame({name: np.concatenate([o[name] for o in outputs]) for name in outputs[0]})
 
     # ------------------------------------------------------------------ windows
     def _settle_phases(self, chunk: PlotColumns) -> None:
@@ -618,7 +618,7 @@ class Tracker:
         x, P = kf_predict(bank.x[rows], bank.P[rows], F, Q)
         self.outputs.append(self._track_rows(instant, rows, x, P))
 
-    def _track_rows(self, instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray) -> pd.DataFrame:
+    def _track_rows(self, instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray) -> dict[str, np.ndarray]:
         bank = self.bank
         count = len(rows)
         nan = np.full(count, np.nan)
@@ -649,7 +649,7 @@ class Tracker:
             for i in range(self.model.dim):
                 for j in range(i, self.model.dim):
                     columns[f"cov_{i}_{j}"] = P[:, i, j]
-        return pd.DataFrame(columns)
+        return columns
 
 
 def _empty_tracks(full_covariance: bool, dim: int, order: int) -> pd.DataFrame:
