@@ -47,3 +47,27 @@ def test_lenient_counts_accumulate_over_chunks(tmp_path):
     assert (report.rows_read, report.rows_kept, report.rows_skipped) == (1000, 997, 3)
     [entry] = report.skipped.values()
     assert entry.count == 3 and [e.row for e in entry.examples] == [5, 300, 999]
+
+
+def test_a_column_in_another_unit_is_named(tmp_path):
+    plots = _plots(10).rename(columns={"range_m": "range_km", "azimuth_deg": "azimuth_rad"})
+    plots.to_csv(tmp_path / "plots.csv", index=False)
+    with pytest.raises(InputError) as caught:
+        read_plots(tmp_path / "plots.csv")
+    message = str(caught.value)
+    assert "range_km is in kilometres, FORMATS.md wants range_m in metres" in message
+    assert "azimuth_rad is in radians, FORMATS.md wants azimuth_deg in degrees" in message
+
+
+def test_values_in_another_unit_give_a_warning(tmp_path):
+    plots = _plots(100)
+    plots["range_m"] /= 1000.0
+    plots["azimuth_deg"] = np.radians(plots["azimuth_deg"])
+    plots.to_parquet(tmp_path / "plots.parquet")
+    _, report = read_plots(tmp_path / "plots.parquet", lenient=True)
+    assert any("kilometres instead of metres" in w for w in report.warnings)
+    assert any("radians instead of degrees" in w for w in report.warnings)
+    with pytest.warns(UserWarning) as caught:
+        read_plots(tmp_path / "plots.parquet")
+    messages = [str(w.message) for w in caught]
+    assert any("kilometres" in m for m in messages) and any("radians" in m for m in messages)

@@ -122,7 +122,28 @@ def require_columns(df: pd.DataFrame, source: TableSource, needed: Sequence[Need
             missing.append(" or ".join("/".join(group) for group in groups))
     if missing:
         found = ", ".join(map(str, df.columns)) or "no columns"
-        raise source.error(f"missing required {table} column(s): {', '.join(missing)} (found: {found})")
+        hints = _unit_hints(missing, present)
+        raise source.error(f"missing required {table} column(s): {', '.join(missing)} (found: {found}){hints}")
+
+
+#: unit suffixes of FORMATS.md column names and their meaning
+_UNITS = {"m": "metres", "km": "kilometres", "nm": "nautical miles", "ft": "feet", "deg": "degrees",
+          "rad": "radians", "mrad": "milliradians", "s": "seconds", "ms": "milliseconds", "mps": "m/s",
+          "kt": "knots", "fpm": "feet per minute"}
+
+
+def _unit_hints(missing: Sequence[str], present: set[str]) -> str:
+    """Name columns that are the wanted quantity in another unit (``range_km`` for ``range_m``)."""
+    hints = []
+    for wanted in (name for entry in missing for name in entry.replace(" or ", "/").split("/")):
+        stem, _, unit = wanted.rpartition("_")
+        if not stem or unit not in _UNITS:
+            continue
+        for other in sorted(present):
+            other_stem, _, other_unit = other.rpartition("_")
+            if other_stem == stem and other_unit != unit and other_unit in _UNITS:
+                hints.append(f"{other} is in {_UNITS[other_unit]}, FORMATS.md wants {wanted} in {_UNITS[unit]}")
+    return "; " + "; ".join(hints) if hints else ""
 
 
 def order_columns(df: pd.DataFrame, schema: TableSchema) -> pd.DataFrame:

@@ -98,8 +98,25 @@ def _validate_plots(
         strict_increase=False,
         group_label="sensor",
     )
+    _warn_implausible_units(range_m, azimuth, report)
     df = checks.finish(df, lenient=lenient, report=report)
     return order_columns(df, PLOT_SCHEMA)
+
+
+#: a table needs this many rows before its value ranges say anything about units
+_UNIT_CHECK_MIN_ROWS = 50
+
+
+def _warn_implausible_units(range_m: np.ndarray, azimuth: np.ndarray, report: ReadReport) -> None:
+    """Warn when the values look like another unit than the column name says."""
+    if len(range_m) < _UNIT_CHECK_MIN_ROWS:
+        return
+    largest_range = np.nanmax(np.asarray(range_m, dtype=float), initial=-np.inf)
+    if 0 < largest_range < 1000.0:
+        report.warn(f"range_m never exceeds {largest_range:g}: are the ranges in kilometres instead of metres?")
+    largest_azimuth = np.nanmax(np.asarray(azimuth, dtype=float), initial=-np.inf)
+    if 0 < largest_azimuth <= 2 * np.pi:
+        report.warn(f"azimuth_deg never exceeds {largest_azimuth:g}: are the azimuths in radians instead of degrees?")
 
 
 @overload
