@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import warnings
 import time
 from pathlib import Path
 from typing import Annotated, Optional
@@ -76,6 +77,11 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Input warnings (e.g. values that look like another unit) as one plain line."""
+    error_console.print(f"[yellow]warning:[/] {message}", highlight=False, soft_wrap=True)
+
+
 @app.callback()
 def main(
     version: Annotated[
@@ -83,6 +89,7 @@ def main(
     ] = False,
 ) -> None:
     """skytrack command line."""
+    warnings.showwarning = _show_warning
 
 
 # ---------------------------------------------------------------------------- simulate
