@@ -154,7 +154,7 @@ def track(
     tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = _DEFAULTS.singer_tau_s,
     sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = _DEFAULTS.singer_sigma_a,
     discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = _DEFAULTS.discretization,
-    manoeuvre_scale: Annotated[float, typer.Option(help="Process-noise factor while a track manoeuvres (1 = off).")] = _DEFAULTS.manoeuvre_q_scale,
+    manoeuvre_scale: Annotated[Optional[float], typer.Option(help="Process-noise factor while a track manoeuvres (1 = off; default 3000 for cv, off for singer).")] = None,
     p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = _DEFAULTS.p_gate,
     gate_threshold: Annotated[Optional[float], typer.Option(help="Gate threshold g (overrides --p-gate).")] = None,
     confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = f"{_DEFAULTS.confirm_m}/{_DEFAULTS.confirm_n}",

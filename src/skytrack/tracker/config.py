@@ -9,6 +9,9 @@ from skytrack.models.motion import MotionModel, constant_velocity, singer
 
 MOTION_MODELS = ("singer", "cv")
 INIT_METHODS = ("one-point", "two-point")
+#: manoeuvre process-noise factor by model when none is given: the quiet CV model needs the
+#: switch to follow turns; Singer's own acceleration state covers them (1 = switch off)
+DEFAULT_MANOEUVRE_SCALE = {"cv": 3000.0, "singer": 1.0}
 
 
 @dataclass
@@ -41,7 +44,8 @@ class TrackerConfig:
     ``manoeuvre_q_scale``.  psi is set when the exponentially smoothed normalised
     innovation squared (NIS per component, smoothing weight ``manoeuvre_memory`` on the
     past) exceeds ``manoeuvre_on_nis`` and cleared when it falls below
-    ``manoeuvre_off_nis``; ``manoeuvre_q_scale = 1`` switches the mechanism off.  The flag
+    ``manoeuvre_off_nis``; ``manoeuvre_q_scale = 1`` switches the mechanism off, and
+    ``None`` (the default) takes 3000 for CV and 1 (off) for Singer.  The flag
     is a function of past innovations only, as Theorem 1 (2a) requires.
 
     Geometry: ``tracking_dim`` 2 tracks in the horizontal plane (2-D radars, slant range
@@ -54,7 +58,7 @@ class TrackerConfig:
     singer_sigma_a: float = 4.0
     discretization: str = "exact"
     cv_q: float = 0.5
-    manoeuvre_q_scale: float = 3000.0
+    manoeuvre_q_scale: float | None = None
     manoeuvre_on_nis: float = 3.0
     manoeuvre_off_nis: float = 1.2
     manoeuvre_memory: float = 0.5
@@ -103,7 +107,9 @@ class TrackerConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value}")
-        if not (math.isfinite(self.manoeuvre_q_scale) and self.manoeuvre_q_scale >= 1.0):
+        if self.manoeuvre_q_scale is not None and not (
+            math.isfinite(self.manoeuvre_q_scale) and self.manoeuvre_q_scale >= 1.0
+        ):
             raise ValueError(f"manoeuvre_q_scale must be >= 1, got {self.manoeuvre_q_scale}")
         if not 0.0 <= self.manoeuvre_memory < 1.0:
             raise ValueError(f"manoeuvre_memory must be in [0, 1), got {self.manoeuvre_memory}")
@@ -113,6 +119,13 @@ class TrackerConfig:
             raise ValueError(f"sectors_per_scan must be >= 1, got {self.sectors_per_scan}")
         if self.output_interval_s is not None and not self.output_interval_s > 0:
             raise ValueError(f"output_interval_s must be > 0, got {self.output_interval_s}")
+
+    @property
+    def manoeuvre_scale(self) -> float:
+        """The process-noise factor in use while psi = 1 (``manoeuvre_q_scale`` or the model's default)."""
+        if self.manoeuvre_q_scale is not None:
+            return self.manoeuvre_q_scale
+        return DEFAULT_MANOEUVRE_SCALE[self.model]
 
     def motion_model(self, ndim: int) -> MotionModel:
         if self.model == "singer":

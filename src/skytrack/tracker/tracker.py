@@ -276,7 +276,7 @@ class Tracker:
                 (lambda: status == TENTATIVE, False),
             )
             for members, manoeuvre in stages:
-                if manoeuvre and cfg.manoeuvre_q_scale == 1.0:
+                if manoeuvre and cfg.manoeuvre_scale == 1.0:
                     continue
                 tracks = np.flatnonzero(members())
                 free = np.flatnonzero(~plot_used)
@@ -354,9 +354,9 @@ class Tracker:
         step = np.abs(dt)
         F = self.model.F_batch(step)
         Q = self.model.Q_batch(step)
-        if manoeuvre or self.config.manoeuvre_q_scale != 1.0:
+        if manoeuvre or self.config.manoeuvre_scale != 1.0:
             flag = np.ones(len(tracks), bool) if manoeuvre else self.bank.manoeuvring[tracks]
-            Q *= np.where(flag, self.config.manoeuvre_q_scale, 1.0)[:, None, None]
+            Q *= np.where(flag, self.config.manoeuvre_scale, 1.0)[:, None, None]
         backwards = dt < 0
         if backwards.any():
             F[backwards] = np.linalg.inv(F[backwards])
