@@ -195,3 +195,12 @@ def test_cartesian_position_model():
     # default: as many state axes as measured axes
     full = CartesianPositionModel(ndim=3, order=2)
     np.testing.assert_array_equal(full.evaluate(np.arange(6.0), jacobian=False), [[0.0, 2.0, 4.0]])
+
+
+def test_cartesian_position_noise():
+    model = CartesianPositionModel(ndim=3, order=2, sigma_m=30.0)
+    np.testing.assert_array_equal(model.R, np.eye(3) * 900.0)
+    with pytest.raises(ValueError, match="sigma_m"):
+        CartesianPositionModel(ndim=2, order=2).R
+    with pytest.raises(ValueError, match="sigma_m must be finite and > 0"):
+        CartesianPositionModel(ndim=2, order=2, sigma_m=-1.0)

@@ -127,15 +127,30 @@ class PolarMeasurementModel:
 
 @dataclass(frozen=True)
 class CartesianPositionModel:
-    """Linear position measurement of the first ``ndim`` axes: ``h(x) = H x``."""
+    """Linear position measurement of the first ``ndim`` axes: ``h(x) = H x``.
+
+    ``sigma_m`` is the per-axis standard deviation (e.g. an ADS-B report's ``sigma_m``);
+    ``R`` is only defined when it is given.
+    """
 
     ndim: int
     order: int
     state_ndim: int | None = None
+    sigma_m: float | None = None
+
+    def __post_init__(self):
+        if self.sigma_m is not None and not (np.isfinite(self.sigma_m) and self.sigma_m > 0):
+            raise ValueError(f"sigma_m must be finite and > 0, got {self.sigma_m}")
 
     @property
     def dim(self) -> int:
         return self.ndim
+
+    @property
+    def R(self) -> np.ndarray:
+        if self.sigma_m is None:
+            raise ValueError("CartesianPositionModel has no sigma_m: R is unknown")
+        return np.eye(self.ndim) * self.sigma_m**2
 
     @property
     def angular(self) -> np.ndarray:
