@@ -22,6 +22,7 @@ _NUMERIC_FIELDS = {
     "n_updates": np.int64,
     "n_misses": np.int64,  # consecutive misses
     "created": np.float64,
+    "last_event": np.float64,  # end of the window of the latest hit or miss
     "confirmed_at": np.float64,
     "alt_m": np.float64,  # last Mode C altitude (m), NaN if none
     "z_hint": np.float64,  # ENU z of the last plot (2-D tracking, for lat/lon)

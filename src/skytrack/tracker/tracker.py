@@ -287,7 +287,7 @@ class Tracker:
                 )
                 hit[assigned_tracks] = True
                 plot_used[assigned_plots] = True
-            self._record_events(hit, expected)
+            self._record_events(hit, expected, w_end)
         self.stats["plots_assigned"] += int(plot_used.sum())
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         self._manage()
@@ -311,9 +311,11 @@ class Tracker:
             nearby = expected | (t_ref >= w_start + period - margin) | (t_ref < w_end + margin)
             t_ref = np.where(expected, t_ref, np.clip(t_ref - np.where(t_ref >= w_start + period - margin, period, 0.0), w_start, w_end))
         else:
-            # without an antenna schedule there is no telling which track is due: no misses
+            # no antenna schedule (e.g. an airborne radar): a plot is due once per revisit
+            # interval (the scan period, else the window) since the track's last hit or miss
+            revisit = self.period[s] if np.isfinite(self.period[s]) else self.window_length[s]
             t_ref = np.full(len(bank), mid)
-            expected = np.zeros(len(bank), dtype=bool)
+            expected = w_end - np.maximum(bank.last_event, bank.created) >= revisit
             nearby = np.ones(len(bank), dtype=bool)
         if sensor.max_range_m:
             # out of this sensor's range no plot is due, unless no sensor covers the track:
@@ -522,11 +524,12 @@ class Tracker:
         x_new[rows] = x
         P_new[rows] = P
 
-    def _record_events(self, hit: np.ndarray, expected: np.ndarray) -> None:
+    def _record_events(self, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
         """M-of-N history and consecutive misses for tracks expected (or hit) in this window."""
         bank = self.bank
         n = len(hit)
         event = hit | expected
+        bank.last_event[:n][event] = w_end
         window_mask = np.uint32((1 << self.config.confirm_n) - 1)
         bits = bank.hit_bits[:n]
         bits[event] = ((bits[event] << np.uint32(1)) | hit[event].astype(np.uint32)) & window_mask
