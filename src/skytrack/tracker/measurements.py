@@ -9,6 +9,11 @@ plots (or of candidate pairs) at once:
   covariance through the derivative of the projection.
 * 3-D radar: (range, azimuth, elevation) to sensor-local ENU.
 
+An airborne radar (``radar-airborne``) measures from the platform position of each plot
+(``platform_x/y/z`` columns); its axes are the common frame's turned by
+``north_offset_deg``, and its height above the ellipsoid is taken as the platform's ENU
+``z`` (the Earth's curvature over the platform's distance from the origin is neglected).
+
 A 2-D plot whose assumed height exceeds its slant range cannot be placed; it is put
 above the radar with a horizontal spread of its slant range (the tracker counts them).
 
