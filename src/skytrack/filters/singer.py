@@ -958,8 +958,8 @@ class SingerTracker3D:
         var_r, var_az = self._sigma("r") ** 2, self._sigma("az") ** 2
         if "el" in values:
             el = values["el"]
-            # d(el-parameter)/d(el) = 1
-            third, var_third, d_el_dr, d_el_dthird = el, self._sigma("el") ** 2, 0.0, 1.0
+            # the third measured parameter is el itself: d(el)/d(third) = 1
+            var_third, d_el_dr, d_el_dthird = self._sigma("el") ** 2, 0.0, 1.0
         else:
             if "z_alt" in values:
                 z_alt, var_z = values["z_alt"], self._sigma("z_alt") ** 2
@@ -972,7 +972,7 @@ class SingerTracker3D:
                 raise ValueError(f"altitude difference {height} m is not below the slant range {r} m")
             el = math.asin(height / r)
             cos_el = math.cos(el)
-            third, var_third = height, var_z
+            var_third = var_z  # the third parameter is the height above the sensor
             d_el_dr, d_el_dthird = -height / (r * r * cos_el), 1.0 / (r * cos_el)
         local = np.array(polar_to_cartesian(r, az, el), dtype=float)
         ground = r * math.cos(el)

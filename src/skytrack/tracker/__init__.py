@@ -1,6 +1,6 @@
 """Multi-target tracker: track life cycle, scan processing, multi-sensor input."""
 
 from skytrack.tracker.config import TrackerConfig
-from skytrack.tracker.tracker import TRACK_OUTPUT_COLUMNS, Tracker, track_plots
+from skytrack.tracker.tracker import TRACK_OUTPUT_COLUMNS, Tracker
 
-__all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker", "TrackerConfig", "track_plots"]
+__all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker", "TrackerConfig"]

@@ -669,13 +669,3 @@ def _empty_tracks(full_covariance: bool, dim: int, order: int) -> pd.DataFrame:
             for j in range(i, n):
                 columns[f"cov_{i}_{j}"] = pd.Series(dtype=float)
     return pd.DataFrame(columns)
-
-
-def track_plots(plots: pd.DataFrame, sensors: SensorSet, config: TrackerConfig | None = None,
-                progress: Callable[[float], None] | None = None) -> tuple[pd.DataFrame, Tracker]:
-    """Convenience: run a :class:`Tracker` over a whole plots table."""
-    tracker = Tracker(sensors, config)
-    tracks = tracker.run(plots, progress=progress)
-    return tracks, tracker
-
-
