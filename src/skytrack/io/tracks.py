@@ -119,12 +119,18 @@ def read_tracks(path, *, lenient=False):
     return (tracks, report) if lenient else tracks
 
 
-def write_tracks(df: pd.DataFrame, path: str | Path, *, origin: Origin | None = None) -> Path:
-    """Write tracks in the FORMATS.md layout: all TRACK_COLUMNS in order, then extras."""
+def _tracks_to_write(df: pd.DataFrame, path: str | Path) -> pd.DataFrame:
+    """Validate tracks about to be written (strict), in FORMATS.md column order."""
     source = TableSource.for_frame(f"tracks to write to {path}")
     report = ReadReport(file=source.display)
     tracks = _validate_tracks(df.reset_index(drop=True), source, False, report)
     emit_warnings(report, False)
+    return tracks
+
+
+def write_tracks(df: pd.DataFrame, path: str | Path, *, origin: Origin | None = None) -> Path:
+    """Write tracks in the FORMATS.md layout: all TRACK_COLUMNS in order, then extras."""
+    tracks = _tracks_to_write(df, path)
     if origin is not None and not {"lat", "lon", "alt_m"} & set(tracks.columns):
         z = tracks["z"].to_numpy() if "z" in tracks.columns else np.full(len(tracks), np.nan)
         known = np.isfinite(z)
@@ -170,10 +176,7 @@ class TrackWriter:
     def write(self, chunk: pd.DataFrame) -> None:
         if len(chunk) == 0:
             return
-        source = TableSource.for_frame(f"tracks to write to {self.path}")
-        report = ReadReport(file=source.display)
-        tracks = add_missing_columns(_validate_tracks(chunk.reset_index(drop=True), source, False, report), TRACK_SCHEMA)
-        emit_warnings(report, False)
+        tracks = add_missing_columns(_tracks_to_write(chunk, self.path), TRACK_SCHEMA)
         table = pa.Table.from_pandas(tracks, preserve_index=False)
         if self._schema is None:
             self._schema = self._schema_for(table)

@@ -334,14 +334,14 @@ class Tracker:
             inside |= np.einsum("ki,ki->k", offset, offset) <= sensor.max_range_m**2
         return inside
 
-    def _extrapolate_positions(self, t: float | np.ndarray, index=slice(None)) -> np.ndarray:
-        """Deterministic position extrapolation (no covariance), for reference geometry."""
+    def _extrapolate_positions(self, t: float) -> np.ndarray:
+        """Deterministic position extrapolation of every track (no covariance), for geometry."""
         bank = self.bank
-        dt = np.asarray(t) - bank.t[index]
-        x = bank.x[index]
-        pos = x[:, self.pos_idx] + x[:, self.vel_idx] * np.asarray(dt)[..., None]
+        dt = t - bank.t
+        x = bank.x
+        pos = x[:, self.pos_idx] + x[:, self.vel_idx] * dt[:, None]
         if self.order == 3:
-            pos = pos + 0.5 * x[:, self.pos_idx + 2] * np.square(dt)[..., None]
+            pos = pos + 0.5 * x[:, self.pos_idx + 2] * np.square(dt)[:, None]
         return pos
 
     def _as_3d(self, position: np.ndarray, z: np.ndarray) -> np.ndarray:
