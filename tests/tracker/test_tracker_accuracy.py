@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import chi2
 
 from skytrack.tracker.config import TrackerConfig
-from skytrack.tracker.measurements import convert_plots
+from skytrack.models.conversion import convert_plots
 from skytrack.tracker.tracker import Tracker
 
 

@@ -1,4 +1,4 @@
-"""Converted measurements (skytrack.tracker.measurements): the linearised covariance
+"""Converted measurements (skytrack.models.conversion): the linearised covariance
 J diag(sigma^2) J^T of the polar -> common-frame conversion against a Monte Carlo of the
 conversion itself."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from skytrack.geo.sensors import Origin, Sensor, SensorSet
-from skytrack.tracker.measurements import convert_plots, sensor_positions
+from skytrack.models.conversion import convert_plots, sensor_positions
 
 N_SAMPLES = 200_000
 # whitened sample covariance: entries have standard error sqrt(2 / N) (diagonal) or

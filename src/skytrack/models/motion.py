@@ -244,6 +244,28 @@ class SingerAxisModel(AxisModel):
         return Q
 
 
+@dataclass(frozen=True)
+class ScaledAxis(AxisModel):
+    """An axis model whose process noise is multiplied by ``factor`` (same transition)."""
+
+    base: AxisModel
+    factor: float
+
+    def __post_init__(self):
+        if not (math.isfinite(self.factor) and self.factor > 0):
+            raise ValueError(f"process-noise factor must be finite and > 0, got {self.factor}")
+
+    @property
+    def order(self) -> int:  # type: ignore[override]
+        return self.base.order
+
+    def F_batch(self, dt) -> np.ndarray:
+        return self.base.F_batch(dt)
+
+    def Q_batch(self, dt) -> np.ndarray:
+        return self.base.Q_batch(dt) * self.factor
+
+
 def block_diag_batch(blocks: list[np.ndarray]) -> np.ndarray:
     """Block-diagonal assembly of stacked matrices: blocks ``[K, n_i, n_i]`` -> ``[K, n, n]``."""
     lead = blocks[0].shape[:-2]
@@ -272,6 +294,19 @@ class MotionModel:
         self._identical = all(ax == axes[0] for ax in axes)
 
     @property
+    def identical_axes(self) -> bool:
+        """Every axis has the same model (F and Q are one block repeated)."""
+        return self._identical
+
+    @property
+    def is_linear(self) -> bool:
+        return True
+
+    def f(self, x: np.ndarray, dt) -> np.ndarray:
+        """Deterministic transition ``F(dt) x`` of states ``[K, n]`` (transition-model protocol)."""
+        return np.einsum("kij,kj->ki", self.F_batch(np.broadcast_to(dt, (len(x),))), x)
+
+    @property
     def position_index(self) -> np.ndarray:
         return np.arange(self.ndim) * self.order
 
@@ -296,6 +331,10 @@ class MotionModel:
 
     def Q(self, dt: float) -> np.ndarray:
         return self.Q_batch(_as_steps(dt, allow_zero=False).reshape(1))[0]
+
+    def scaled(self, factor: float) -> "MotionModel":
+        """The same model with every axis's process noise multiplied by ``factor``."""
+        return MotionModel([ScaledAxis(ax, factor) for ax in self.axes])
 
     def embed_position(self, positions: np.ndarray) -> np.ndarray:
         """State vectors ``[K, dim]`` with the given positions ``[K, ndim]`` and zero derivatives."""

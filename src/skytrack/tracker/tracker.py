@@ -3,7 +3,7 @@
 Per processing window (one scan of a rotating radar, or a sector of it when several
 sensors are merged; see :mod:`skytrack.tracker.plots`):
 
-1. plots are converted to common-frame positions (:mod:`skytrack.tracker.measurements`);
+1. plots are converted to common-frame positions (:mod:`skytrack.models.conversion`);
 2. every track gets a reference time — when the beam crosses its predicted azimuth —
    and is *expected* in the window if that time falls inside it and the track is within
    the sensor's range;
@@ -40,7 +40,7 @@ from skytrack.geo.wgs84 import enu_to_geodetic
 from skytrack.models.measurement import PolarMeasurementModel
 from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.tracker.config import TrackerConfig
-from skytrack.tracker.measurements import convert_plots, sensor_positions
+from skytrack.models.conversion import convert_plots, sensor_positions
 from skytrack.tracker.plots import (
     PlotColumns,
     beam_crossing_time,

@@ -1,7 +1,7 @@
-"""Converted measurements: radar plots as Cartesian positions with their covariance.
+"""The one plot-to-position conversion: radar plots as common-frame positions with covariance.
 
-The multi-target tracker works on converted measurements, computed for a whole batch of
-plots (or of candidate pairs) at once:
+The tracker, the report figures and the spec 000 code all place plots through
+:func:`convert_plots`, computed for a whole batch of plots (or of candidate pairs) at once:
 
 * 2-D radar: the slant range is put on the sphere model of FORMATS.md at the target's
   height (Mode C, else the track's last Mode C, else a configured default) with

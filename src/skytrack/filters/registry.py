@@ -1,0 +1,70 @@
+"""Registry of filter families: a kind name -> a factory building the filter from a motion model.
+
+Adding a family is one module plus one ``@register_filter("kind")`` factory here (or in the
+module itself, imported below); the tracker's configuration, the CLI's ``--filter`` option
+and the conformance suite all read :data:`FILTERS`.
+
+A factory is called as ``factory(motion, **options)`` with the tracker's motion model
+(:class:`~skytrack.models.motion.MotionModel`) and the options of the configuration's
+``filter`` section.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from skytrack.filters.base import BatchFilter
+from skytrack.filters.imm import IMMFilter
+from skytrack.filters.kalman import KalmanFilter
+from skytrack.filters.maneuver import ManoeuvreSwitchFilter
+from skytrack.models.motion import MotionModel
+
+FilterFactory = Callable[..., BatchFilter]
+FILTERS: dict[str, FilterFactory] = {}
+
+
+def register_filter(kind: str) -> Callable[[FilterFactory], FilterFactory]:
+    def decorate(factory: FilterFactory) -> FilterFactory:
+        if kind in FILTERS:
+            raise ValueError(f"filter kind {kind!r} is registered twice")
+        FILTERS[kind] = factory
+        return factory
+
+    return decorate
+
+
+def build_filter(kind: str, motion: MotionModel, **options) -> BatchFilter:
+    """The filter of the given kind; unknown kinds and options raise ValueError naming the known ones."""
+    if kind not in FILTERS:
+        raise ValueError(f"unknown filter kind {kind!r}; registered: {', '.join(sorted(FILTERS))}")
+    try:
+        return FILTERS[kind](motion, **options)
+    except TypeError as exc:
+        raise ValueError(f"filter {kind!r}: {exc}") from None
+
+
+@register_filter("kalman")
+def _kalman(motion: MotionModel, form: str = "joseph", compiled: bool = True) -> KalmanFilter:
+    return KalmanFilter(motion, form=form, compiled=compiled)
+
+
+@register_filter("kalman-psi")
+def _kalman_psi(motion: MotionModel, scale: float = 3000.0, on: float = 3.0, off: float = 1.2,
+                memory: float = 0.5, compiled: bool = True) -> ManoeuvreSwitchFilter:
+    return ManoeuvreSwitchFilter(KalmanFilter(motion, compiled=compiled), scale, on, off, memory)
+
+
+@register_filter("imm")
+def _imm(motion: MotionModel, q_scales: tuple[float, ...] = (1.0, 3000.0), mean_sojourn_s: tuple[float, ...] = (60.0, 15.0),
+         compiled: bool = True) -> IMMFilter:
+    """IMM whose modes are the motion model with its process noise times each of ``q_scales``;
+    mode i is left at rate ``1 / mean_sojourn_s[i]``, evenly to the other modes."""
+    if len(q_scales) != len(mean_sojourn_s) or len(q_scales) < 2:
+        raise ValueError("q_scales and mean_sojourn_s need one entry per mode (at least two)")
+    modes = [KalmanFilter(motion.scaled(scale), compiled=compiled) for scale in q_scales]
+    count = len(modes)
+    rates = np.array([[0.0 if i == j else 1.0 / (mean_sojourn_s[i] * (count - 1)) for j in range(count)]
+                      for i in range(count)])
+    return IMMFilter(modes, rates)
