@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import connected_components, min_weight_full_bipartite_matching
 
 #: cost of a forbidden (non-gated) cell inside a cluster; finite so LSA always succeeds
 _FORBIDDEN = 1e18
@@ -83,3 +83,70 @@ def _solve_cluster(pairs, tracks, plots, costs, miss) -> np.ndarray:
     lookup[t_local, p_local] = pairs
     picked = lookup[rows[real], cols[real]]
     return picked[picked >= 0]
+
+
+#: clusters with more tracks plus plots than this go to the sparse solver
+MAX_DENSE_CLUSTER = 48
+
+
+class GNNAssigner:
+    """Global nearest neighbour over :class:`~skytrack.association.base.PairScores` (``"gnn"``).
+
+    Only pairs inside the gate take part.  ``compiled=True`` solves lone pairs and clusters
+    up to :data:`MAX_DENSE_CLUSTER` nodes in one numba call and every larger cluster in one
+    sparse call (``scipy.sparse.csgraph.min_weight_full_bipartite_matching``), so there is
+    no Python loop over clusters; ``compiled=False`` is :func:`assign_gnn`, the reference.
+    """
+
+    name = "gnn"
+
+    def __init__(self, compiled: bool = True) -> None:
+        self.compiled = compiled
+
+    def assign(self, scores, n_tracks: int, n_plots: int) -> np.ndarray:
+        inside = np.flatnonzero(scores.inside)
+        ti, pj, cost = scores.pairs.track[inside], scores.pairs.plot[inside], scores.cost[inside]
+        if len(inside) == 0:
+            return inside
+        miss = np.broadcast_to(np.asarray(scores.miss_cost, dtype=float), (n_tracks,))
+        if not self.compiled:
+            return inside[assign_gnn(ti, pj, cost, n_tracks, n_plots, miss)]
+        from skytrack.association.kernels import assign_clusters
+
+        chosen, big = assign_clusters(ti.astype(np.int64), pj.astype(np.int64), cost.astype(float),
+                                      np.ascontiguousarray(miss), n_tracks, n_plots, MAX_DENSE_CLUSTER)
+        picked = np.flatnonzero(chosen)
+        if big.any():
+            rows = np.flatnonzero(big)
+            picked = np.concatenate([picked, rows[sparse_assignment(ti[rows], pj[rows], cost[rows], miss)]])
+        return inside[np.sort(picked)]
+
+
+def sparse_assignment(ti: np.ndarray, pj: np.ndarray, cost: np.ndarray, miss: np.ndarray) -> np.ndarray:
+    """Optimal assignment of gated pairs with "unassigned" options, as one sparse matching.
+
+    Rows are tracks then plot-dummies, columns plots then track-dummies.  Edges: each pair
+    (cost), track -> its own dummy (miss cost), plot-dummy -> its plot (0) and, for each
+    pair (t, p), plot-dummy p -> track-dummy t (0): enough for a full matching to exist for
+    every choice of pairs.  Every edge gets the same positive offset, which changes no
+    optimum (all full matchings have the same number of edges) and keeps zero-cost edges
+    explicit.  Returns indices of the chosen pairs.
+    """
+    tracks, t_local = np.unique(ti, return_inverse=True)
+    plots, p_local = np.unique(pj, return_inverse=True)
+    nt, npl = len(tracks), len(plots)
+    size = nt + npl
+    offset = 1.0 + float(np.max(np.abs(cost))) + float(np.max(miss[tracks]))
+    rows = np.concatenate([t_local, np.arange(nt), nt + np.arange(npl), nt + p_local])
+    cols = np.concatenate([p_local, npl + np.arange(nt), np.arange(npl), npl + t_local])
+    weights = np.concatenate([cost, miss[tracks], np.zeros(npl), np.zeros(len(ti))]) + offset
+    graph = coo_matrix((weights, (rows, cols)), shape=(size, size)).tocsr()
+    row_of, col_of = min_weight_full_bipartite_matching(graph)
+    matched_col = np.full(size, -1)
+    matched_col[row_of] = col_of
+    track_rows = np.arange(nt)
+    real = matched_col[:nt] < npl
+    keys = t_local.astype(np.int64) * npl + p_local
+    order = np.argsort(keys)
+    wanted = track_rows[real] * npl + matched_col[:nt][real]
+    return np.sort(order[np.searchsorted(keys[order], wanted)]).astype(np.intp)

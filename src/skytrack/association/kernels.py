@@ -1,0 +1,232 @@
+"""Compiled (numba, cached) association kernels, with numpy/scipy references elsewhere.
+
+* :func:`sweep_pairs` — candidate (track, plot) pairs within ``scale (s_t + s_p) + margin_t``:
+  plots sorted by x once per call, each track scans the x-interval of its largest possible
+  radius (a sort-and-sweep spatial index); plots whose spread is far above the batch's
+  (``wide``) are checked against every track instead, so they do not widen every search.
+  Reference: :func:`skytrack.association.candidates.candidate_pairs` (k-d trees).
+* :func:`assign_clusters` — global nearest neighbour: union-find over the gated pairs gives
+  the clusters; a lone pair is taken when it costs no more than leaving its track
+  unassigned; clusters up to ``max_dense`` tracks plus plots are solved exactly by a
+  shortest-augmenting-path assignment on the matrix augmented with "track unassigned"
+  (cost ``miss``) and "plot unassigned" (cost 0) options; larger clusters are flagged
+  for the sparse solver.  Reference: :func:`skytrack.association.gnn.assign_gnn`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def sweep_pairs(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, scale, wide_limit):
+    n_tracks, dim = track_pos.shape
+    n_plots = plot_pos.shape[0]
+    narrow_max = 0.0
+    n_wide = 0
+    for j in range(n_plots):
+        if plot_sigma[j] > wide_limit:
+            n_wide += 1
+        elif plot_sigma[j] > narrow_max:
+            narrow_max = plot_sigma[j]
+    narrow = np.empty(n_plots - n_wide, np.int64)
+    wide = np.empty(n_wide, np.int64)
+    a = 0
+    b = 0
+    for j in range(n_plots):
+        if plot_sigma[j] > wide_limit:
+            wide[b] = j
+            b += 1
+        else:
+            narrow[a] = j
+            a += 1
+    xs = np.empty(len(narrow))
+    for k in range(len(narrow)):
+        xs[k] = plot_pos[narrow[k], 0]
+    order = np.argsort(xs)
+    xs_sorted = xs[order]
+    capacity = 4 * (n_tracks + n_plots) + 16
+    out_t = np.empty(capacity, np.int64)
+    out_p = np.empty(capacity, np.int64)
+    count = 0
+    for t in range(n_tracks):
+        reach = scale * (track_sigma[t] + narrow_max) + track_margin[t]
+        lo = np.searchsorted(xs_sorted, track_pos[t, 0] - reach)
+        hi = np.searchsorted(xs_sorted, track_pos[t, 0] + reach, side="right")
+        for k in range(lo, hi):
+            j = narrow[order[k]]
+            radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
+            d2 = 0.0
+            for c in range(dim):
+                diff = plot_pos[j, c] - track_pos[t, c]
+                d2 += diff * diff
+            if d2 <= radius * radius:
+                if count == capacity:
+                    capacity *= 2
+                    out_t = _grow(out_t, capacity)
+                    out_p = _grow(out_p, capacity)
+                out_t[count] = t
+                out_p[count] = j
+                count += 1
+    for k in range(n_wide):
+        j = wide[k]
+        for t in range(n_tracks):
+            radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
+            d2 = 0.0
+            for c in range(dim):
+                diff = plot_pos[j, c] - track_pos[t, c]
+                d2 += diff * diff
+            if d2 <= radius * radius:
+                if count == capacity:
+                    capacity *= 2
+                    out_t = _grow(out_t, capacity)
+                    out_p = _grow(out_p, capacity)
+                out_t[count] = t
+                out_p[count] = j
+                count += 1
+    return out_t[:count], out_p[:count]
+
+
+@njit(cache=True, nogil=True)
+def _grow(values, capacity):
+    out = np.empty(capacity, values.dtype)
+    out[: len(values)] = values
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _find(parent, i):
+    root = i
+    while parent[root] != root:
+        root = parent[root]
+    while parent[i] != root:
+        nxt = parent[i]
+        parent[i] = root
+        i = nxt
+    return root
+
+
+@njit(cache=True, nogil=True)
+def _assign_dense(C):
+    """Optimal assignment of a square cost matrix (shortest augmenting paths with potentials).
+
+    Returns the column of every row.  ``inf`` marks forbidden cells; a finite assignment
+    must exist.
+    """
+    n = C.shape[0]
+    u = np.zeros(n + 1)
+    v = np.zeros(n + 1)
+    p = np.zeros(n + 1, np.int64)
+    way = np.zeros(n + 1, np.int64)
+    minv = np.empty(n + 1)
+    used = np.empty(n + 1, np.bool_)
+    for i in range(1, n + 1):
+        p[0] = i
+        j0 = 0
+        minv[:] = np.inf
+        used[:] = False
+        while True:
+            used[j0] = True
+            i0 = p[j0]
+            delta = np.inf
+            j1 = 0
+            for j in range(1, n + 1):
+                if not used[j]:
+                    cur = C[i0 - 1, j - 1] - u[i0] - v[j]
+                    if cur < minv[j]:
+                        minv[j] = cur
+                        way[j] = j0
+                    if minv[j] < delta:
+                        delta = minv[j]
+                        j1 = j
+            for j in range(n + 1):
+                if used[j]:
+                    u[p[j]] += delta
+                    v[j] -= delta
+                else:
+                    minv[j] -= delta
+            j0 = j1
+            if p[j0] == 0:
+                break
+        while True:
+            j1 = way[j0]
+            p[j0] = p[j1]
+            j0 = j1
+            if j0 == 0:
+                break
+    col_of_row = np.empty(n, np.int64)
+    for j in range(1, n + 1):
+        if p[j] != 0:
+            col_of_row[p[j] - 1] = j - 1
+    return col_of_row
+
+
+@njit(cache=True, nogil=True)
+def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
+    """Chosen-pair mask and big-cluster mask for gated pairs (see the module docstring)."""
+    n_pairs = len(ti)
+    parent = np.arange(n_tracks + n_plots)
+    for k in range(n_pairs):
+        a = _find(parent, ti[k])
+        b = _find(parent, n_tracks + pj[k])
+        if a != b:
+            parent[a] = b
+    root = np.empty(n_pairs, np.int64)
+    for k in range(n_pairs):
+        root[k] = _find(parent, ti[k])
+    order = np.argsort(root, kind="mergesort")
+    chosen = np.zeros(n_pairs, np.bool_)
+    big = np.zeros(n_pairs, np.bool_)
+    track_local = np.full(n_tracks, -1, np.int64)
+    plot_local = np.full(n_plots, -1, np.int64)
+    start = 0
+    while start < n_pairs:
+        stop = start + 1
+        while stop < n_pairs and root[order[stop]] == root[order[start]]:
+            stop += 1
+        if stop - start == 1:
+            k = order[start]
+            if cost[k] <= miss[ti[k]]:
+                chosen[k] = True
+            start = stop
+            continue
+        nt = 0
+        npl = 0
+        for s in range(start, stop):
+            k = order[s]
+            if track_local[ti[k]] < 0:
+                track_local[ti[k]] = nt
+                nt += 1
+            if plot_local[pj[k]] < 0:
+                plot_local[pj[k]] = npl
+                npl += 1
+        if nt + npl > max_dense:
+            for s in range(start, stop):
+                big[order[s]] = True
+        else:
+            size = nt + npl
+            C = np.full((size, size), np.inf)
+            pair_at = np.full((nt, npl), -1, np.int64)
+            for s in range(start, stop):
+                k = order[s]
+                a = track_local[ti[k]]
+                b = plot_local[pj[k]]
+                C[a, b] = cost[k]
+                pair_at[a, b] = k
+                C[a, npl + a] = miss[ti[k]]
+            for b in range(npl):
+                C[nt + b, b] = 0.0
+                for a in range(nt):
+                    C[nt + b, npl + a] = 0.0
+            cols = _assign_dense(C)
+            for a in range(nt):
+                b = cols[a]
+                if b < npl and pair_at[a, b] >= 0:
+                    chosen[pair_at[a, b]] = True
+        for s in range(start, stop):
+            k = order[s]
+            track_local[ti[k]] = -1
+            plot_local[pj[k]] = -1
+        start = stop
+    return chosen, big

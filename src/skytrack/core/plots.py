@@ -1,0 +1,182 @@
+"""PlotBatch: radar plots as typed arrays in SI units, identity as integer codes.
+
+Plots are parsed once: the io readers (or :meth:`PlotBatch.from_frame` for a table in
+memory, e.g. from the simulator) validate a FORMATS.md plots table and produce a batch;
+the tracker takes the batch as it is and never re-validates it.
+
+Units: time s, range m, azimuth and elevation rad (azimuth clockwise from north),
+range rate m/s, Mode C altitude m.  Identity codes (``-1`` = absent):
+
+* ``mode3a`` — the 4-octal-digit Mode 3/A code as an integer (``int(code, 8)``);
+* ``mode_s`` — the 24-bit ICAO address as an integer (``int(icao24, 16)``);
+* ``iff`` — index into :data:`IFF_VALUES`.
+
+:func:`decode_mode3a`, :func:`decode_icao24` and :func:`decode_iff` give the text back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+import pandas as pd
+
+FT_TO_M = 0.3048
+IFF_VALUES = ("friend", "foe", "undetermined")
+PLATFORM_COLUMNS = tuple(f"platform_{c}" for c in ("x", "y", "z", "vx", "vy", "vz"))
+
+
+@dataclass
+class PlotBatch:
+    """Plots as arrays; ``sensor`` indexes the sensor set, ``row`` is the row in the whole input."""
+
+    time: np.ndarray
+    sensor: np.ndarray
+    range_m: np.ndarray
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    range_rate: np.ndarray
+    mode_c_m: np.ndarray
+    mode3a: np.ndarray
+    mode_s: np.ndarray
+    iff: np.ndarray
+    platform: np.ndarray
+    row: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def take(self, index) -> "PlotBatch":
+        return PlotBatch(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    @staticmethod
+    def concat(parts: list["PlotBatch"]) -> "PlotBatch":
+        return PlotBatch(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(PlotBatch)})
+
+    @staticmethod
+    def empty() -> "PlotBatch":
+        nan = np.zeros(0)
+        codes = np.zeros(0, np.int32)
+        return PlotBatch(nan, np.zeros(0, np.int16), nan, nan, nan, nan, nan, codes, codes,
+                         np.zeros(0, np.int8), np.zeros((0, 6)), np.zeros(0, np.int64))
+
+    @staticmethod
+    def from_frame(frame: pd.DataFrame, sensor_names: list[str] | None, is_3d: list[bool] | None = None,
+                   source: str = "plots", first_row: int = 0) -> "PlotBatch":
+        """Convert a FORMATS.md plots table; bad values raise ValueError naming the row and column.
+
+        ``first_row`` is the row number of the frame's first row in the whole input (chunks).
+        Checked: required columns, unknown sensors, non-finite times, ranges and azimuths,
+        negative ranges, 3-D radar plots without elevation, malformed identity codes.
+        """
+        count = len(frame)
+        missing = [c for c in ("time", "sensor", "range_m", "azimuth_deg") if c not in frame.columns]
+        if missing:
+            raise ValueError(f"{source}: missing required column(s) {missing}; found {list(frame.columns)}")
+        if sensor_names is None:
+            sensor_index = np.zeros(count, dtype=np.int16)
+        else:
+            names = frame["sensor"].astype(str).to_numpy()
+            lookup = {name: i for i, name in enumerate(sensor_names)}
+            codes, uniques = pd.factorize(names)
+            unknown = [u for u in uniques if u not in lookup]
+            if unknown:
+                first = first_row + int(np.flatnonzero(names == unknown[0])[0])
+                raise ValueError(f"{source}, row {first}, column sensor: unknown sensor {unknown[0]!r} "
+                                 f"(sensors.json has: {', '.join(sensor_names)})")
+            sensor_index = (np.array([lookup[u] for u in uniques], dtype=np.int16)[codes] if count
+                            else np.zeros(0, np.int16))
+
+        def numeric(column: str, scale: float = 1.0) -> np.ndarray:
+            if column not in frame.columns:
+                return np.full(count, np.nan)
+            return frame[column].to_numpy(dtype=float, na_value=np.nan) * scale
+
+        batch = PlotBatch(
+            time=numeric("time"), sensor=sensor_index, range_m=numeric("range_m"),
+            azimuth=np.radians(numeric("azimuth_deg")), elevation=np.radians(numeric("elevation_deg")),
+            range_rate=numeric("range_rate_mps"), mode_c_m=numeric("mode_c_ft", FT_TO_M),
+            mode3a=_codes(frame, "mode3a", 8, source, first_row),
+            mode_s=_codes(frame, "mode_s", 16, source, first_row),
+            iff=_iff_codes(frame, source, first_row),
+            platform=np.column_stack([numeric(c) for c in PLATFORM_COLUMNS]) if count else np.zeros((0, 6)),
+            row=first_row + np.arange(count, dtype=np.int64),
+        )
+        problems = [
+            ("time", ~np.isfinite(batch.time), "value is not a finite number"),
+            ("range_m", ~np.isfinite(batch.range_m), "value is not a finite number"),
+            ("range_m", batch.range_m < 0, "value is negative"),
+            ("azimuth_deg", ~np.isfinite(batch.azimuth), "value is not a finite number"),
+        ]
+        if is_3d is not None and count:
+            flags = np.asarray(is_3d, dtype=bool)[sensor_index]
+            problems.append(("elevation_deg", flags & ~np.isfinite(batch.elevation), "value is missing for a radar-3d plot"))
+        for name, bad, what in problems:
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                given = frame[name].iloc[row] if name in frame.columns else None
+                shown = "" if given is None else f" (got {given})"
+                raise ValueError(f"{source}, row {first_row + row}, column {name}: {what}{shown}")
+        return batch
+
+
+def _text(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray]:
+    values = frame[column].astype(object).to_numpy()
+    present = ~pd.isna(values)
+    return values, present
+
+
+def _codes(frame: pd.DataFrame, column: str, base: int, source: str, first_row: int) -> np.ndarray:
+    out = np.full(len(frame), -1, dtype=np.int32)
+    if column not in frame.columns:
+        return out
+    values, present = _text(frame, column)
+    if not present.any():
+        return out
+    uniques, inverse = np.unique(values[present].astype(str), return_inverse=True)
+    parsed = np.empty(len(uniques), dtype=np.int32)
+    for k, text in enumerate(uniques):  # one parse per distinct code, not per plot
+        try:
+            parsed[k] = int(text, base)
+        except ValueError:
+            row = first_row + int(np.flatnonzero(present)[np.flatnonzero(inverse == k)[0]])
+            kind = "octal" if base == 8 else "hexadecimal"
+            raise ValueError(f"{source}, row {row}, column {column}: {text!r} is not a {kind} code") from None
+    out[present] = parsed[inverse]
+    return out
+
+
+def _iff_codes(frame: pd.DataFrame, source: str, first_row: int) -> np.ndarray:
+    out = np.full(len(frame), -1, dtype=np.int8)
+    if "iff" not in frame.columns:
+        return out
+    values, present = _text(frame, "iff")
+    lookup = {v: i for i, v in enumerate(IFF_VALUES)}
+    coded = np.array([lookup.get(str(v), -2) for v in values[present]], dtype=np.int8)
+    if (coded == -2).any():
+        row = first_row + int(np.flatnonzero(present)[np.flatnonzero(coded == -2)[0]])
+        raise ValueError(f"{source}, row {row}, column iff: expected one of {IFF_VALUES}")
+    out[present] = coded
+    return out
+
+
+def decode_mode3a(codes: np.ndarray) -> np.ndarray:
+    return _decode(codes, "{:04o}")
+
+
+def decode_icao24(codes: np.ndarray) -> np.ndarray:
+    return _decode(codes, "{:06x}")
+
+
+def decode_iff(codes: np.ndarray) -> np.ndarray:
+    table = np.array([*IFF_VALUES, None], dtype=object)
+    return table[np.where(codes < 0, len(IFF_VALUES), codes)]
+
+
+def _decode(codes: np.ndarray, form: str) -> np.ndarray:
+    out = np.full(len(codes), None, dtype=object)
+    present = codes >= 0
+    if present.any():
+        uniques, inverse = np.unique(codes[present], return_inverse=True)
+        out[present] = np.array([form.format(int(c)) for c in uniques], dtype=object)[inverse]
+    return out

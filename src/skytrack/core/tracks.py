@@ -1,0 +1,32 @@
+"""The tracks table: its columns (one source for the tracker's output and the io writers)."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+TRACK_OUTPUT_COLUMNS = [
+    "time", "track_id", "x", "y", "z", "vx", "vy", "vz",
+    "var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz",
+    "lat", "lon", "alt_m", "status", "n_updates", "n_misses",
+    "mode3a", "icao24", "callsign", "iff", "model_probs",
+]
+INTEGER_COLUMNS = {"track_id", "n_updates", "n_misses"}
+TEXT_COLUMNS = {"mode3a", "icao24", "callsign", "iff", "model_probs"}
+
+
+def covariance_columns(state_dim: int) -> list[str]:
+    """``cov_i_j`` for the upper triangle (i <= j) of the state covariance, in state order."""
+    return [f"cov_{i}_{j}" for i in range(state_dim) for j in range(i, state_dim)]
+
+
+def empty_tracks(full_covariance: bool, state_dim: int) -> pd.DataFrame:
+    """A tracks table without rows, with the dtypes of a full one (so chunks concatenate)."""
+    columns = {
+        c: pd.Series(dtype="int64" if c in INTEGER_COLUMNS else object if c in TEXT_COLUMNS
+                     else "str" if c == "status" else float)
+        for c in TRACK_OUTPUT_COLUMNS
+    }
+    if full_covariance:
+        for name in covariance_columns(state_dim):
+            columns[name] = pd.Series(dtype=float)
+    return pd.DataFrame(columns)
