@@ -9,7 +9,7 @@ flag phi of M4-M8).  The relative accuracies are
     FS11 = sqrt(mean_n gamma_11(n)) / sigma,   FES11 = sqrt(mean_n e-gamma_11(n)) / sigma   (A3).
 
 The covariance recursion needs no trajectory, so all (sigma, P_D, run) cells of a variant
-are one batch of :func:`skytrack.filters.singer.covariance_recursion` (R15).  The
+are one batch of :func:`skytrack.filters.spec000.covariance_recursion` (R15).  The
 uniforms u[run, n] come from ``numpy.random.default_rng(seed)`` and are shared by every
 sigma, P_D, variant and discretisation (common random numbers): a cell's result does not
 depend on the rest of the grid, and the per-run detection sets are nested in P_D, so
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from skytrack.filters.singer import SingerFilterBank1D, covariance_recursion, steady_state
+from skytrack.filters.spec000 import SingerFilterBank1D, covariance_recursion, steady_state
 from skytrack.models.motion import SingerAxisModel
 
 #: CSV columns of ``singer_missed.csv`` (spec 000 §6), in this order

@@ -10,7 +10,7 @@ from skytrack.filters.ekf import (
     symmetrize,
     update,
 )
-from skytrack.filters.singer import (
+from skytrack.filters.spec000 import (
     BankStepResult,
     CovarianceAverages,
     Innovation3D,
