@@ -1,8 +1,14 @@
 """The ``skytrack`` command: simulate, track, evaluate, demo and the papers' studies.
 
-Thin layer (DESIGN.md): parse options, call the library, print with rich.  Every input
-problem ends in a one-line error naming the file and the place (exit code 2), never
-in a traceback.
+Thin layer (DESIGN.md): parse options, call the library (:mod:`skytrack.app` holds the
+pipelines), print with rich.  Every input problem ends in a one-line error naming the
+file and the place (exit code 2), never in a traceback.
+
+Start-up stays light: this module and the other ``cli`` modules import only typer and
+rich at module level; the library (numpy, pandas, scipy, matplotlib behind it) is
+imported inside the command functions, so ``skytrack --help`` answers at once.  Option
+defaults that mirror :class:`~skytrack.tracker.TrackerConfig` come from
+:mod:`skytrack.cli.defaults`.
 """
 
 from __future__ import annotations
@@ -10,18 +16,17 @@ from __future__ import annotations
 import functools
 import json
 import warnings
-import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
 from skytrack import __version__
+from skytrack.cli import defaults
 from skytrack.cli.study import study_app
-from skytrack.tracker.config import TrackerConfig
 
 app = typer.Typer(
     name="skytrack",
@@ -33,8 +38,6 @@ app = typer.Typer(
 app.add_typer(study_app, name="study")
 
 console = Console()
-#: the CLI shows the library defaults; one source of truth
-_DEFAULTS = TrackerConfig()
 error_console = Console(stderr=True)
 
 
@@ -59,8 +62,12 @@ def reports_input_errors(command):
     return wrapper
 
 
-def _progress() -> Progress:
-    return Progress(
+@contextmanager
+def _progress():
+    """A rich progress display on stderr; yields the library's ``progress(stage, completed, total)`` callback."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    display = Progress(
         TextColumn("[bold]{task.description:<12}"),
         BarColumn(),
         TextColumn("{task.percentage:>5.1f}%"),
@@ -69,6 +76,16 @@ def _progress() -> Progress:
         console=error_console,
         transient=False,
     )
+    tasks: dict[str, int] = {}
+
+    def update(stage: str, completed: float, total: float | None) -> None:
+        total = total if total is not None else completed  # unknown length (CSV): show what was read
+        if stage not in tasks:
+            tasks[stage] = display.add_task(stage, total=total)
+        display.update(tasks[stage], completed=completed, total=total)
+
+    with display:
+        yield update
 
 
 def _version(value: bool) -> None:
@@ -102,31 +119,14 @@ def simulate(
     fmt: Annotated[str, typer.Option("--format", help="Table format: parquet or csv.")] = "parquet",
 ) -> None:
     """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md)."""
-    from skytrack.io import write_plots, write_sensors, write_truth
+    from skytrack.app.simulate import TABLE_FORMATS, run_simulation, write_simulation
 
-    if fmt not in ("parquet", "csv"):
+    if fmt not in TABLE_FORMATS:
         _fail(f"--format must be parquet or csv, got {fmt!r}")
-    result = _run_simulation(scenario, seed)
-    paths = {
-        "plots": write_plots(result.plots, out / f"plots.{fmt}", sensors=result.sensors),
-        "truth": write_truth(result.truth, out / f"truth.{fmt}"),
-        "sensors": write_sensors(result.sensors, out / "sensors.json"),
-    }
-    _print_simulation_summary(result, paths)
-
-
-def _run_simulation(scenario_source: str, seed: int | None):
-    import numpy as np
-
-    from skytrack.sim import load_scenario, simulate as run_simulation
-
-    scenario = load_scenario(scenario_source)
-    rng = None if seed is None else np.random.default_rng(seed)
     with _progress() as progress:
-        task = progress.add_task("simulate", total=1.0)
-        result = run_simulation(scenario, rng=rng, progress=lambda f: progress.update(task, completed=f))
-        progress.update(task, completed=1.0)
-    return result
+        result = run_simulation(scenario, seed, progress=progress)
+    paths = write_simulation(result, out, fmt)
+    _print_simulation_summary(result, paths)
 
 
 def _print_simulation_summary(result, paths: dict) -> None:
@@ -149,25 +149,28 @@ def track(
     plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
     sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv).")],
-    model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = _DEFAULTS.model,
-    q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = _DEFAULTS.cv_q,
-    tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = _DEFAULTS.singer_tau_s,
-    sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = _DEFAULTS.singer_sigma_a,
-    discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = _DEFAULTS.discretization,
+    model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = defaults.MODEL,
+    q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = defaults.CV_Q,
+    tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = defaults.SINGER_TAU_S,
+    sigma_a: Annotated[float, typer.Option("--sigma-a", help="Singer acceleration standard deviation (m/s^2).")] = defaults.SINGER_SIGMA_A,
+    discretization: Annotated[str, typer.Option(help="Singer discretisation: exact or paper (spec 000).")] = defaults.DISCRETIZATION,
     manoeuvre_scale: Annotated[Optional[float], typer.Option(help="Process-noise factor while a track manoeuvres (1 = off; default 3000 for cv, off for singer).")] = None,
-    p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = _DEFAULTS.p_gate,
+    p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = defaults.P_GATE,
     gate_threshold: Annotated[Optional[float], typer.Option(help="Gate threshold g (overrides --p-gate).")] = None,
-    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = f"{_DEFAULTS.confirm_m}/{_DEFAULTS.confirm_n}",
-    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = _DEFAULTS.delete_misses,
-    init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = _DEFAULTS.init,
+    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = f"{defaults.CONFIRM_M}/{defaults.CONFIRM_N}",
+    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = defaults.DELETE_MISSES,
+    init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = defaults.INIT,
     tracking_dim: Annotated[Optional[int], typer.Option(help="2 (horizontal) or 3; default from the radars.")] = None,
-    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = _DEFAULTS.default_altitude_m,
+    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = defaults.DEFAULT_ALTITUDE_M,
     output_interval: Annotated[Optional[float], typer.Option(help="Report tracks every N s (default: each scan of the first radar).")] = None,
     full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
-    chunk_rows: Annotated[int, typer.Option(help="Plots processed per chunk (bounds memory).")] = 200_000,
+    chunk_rows: Annotated[int, typer.Option(help="Plots read, validated and tracked per chunk (bounds memory, Parquet and CSV alike).")] = defaults.CHUNK_ROWS,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
+    from skytrack.app.run import run_tracking
+    from skytrack.tracker import TrackerConfig
+
     confirm_m, confirm_n = _parse_confirm(confirm)
     config = TrackerConfig(
         model=model, cv_q=q, singer_tau_s=tau, singer_sigma_a=sigma_a, discretization=discretization,
@@ -176,7 +179,10 @@ def track(
         tracking_dim=tracking_dim, default_altitude_m=default_altitude, output_interval_s=output_interval,
         full_covariance=full_covariance,
     )
-    summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows)
+    if chunk_rows < 1:
+        _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
+    with _progress() as progress:
+        summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress)
     _print_tracking_summary(summary)
 
 
@@ -188,60 +194,24 @@ def _parse_confirm(text: str) -> tuple[int, int]:
     return m, n
 
 
-def run_tracking(plots_path: Path, sensors_path: Path, out: Path, config, *, lenient: bool = False,
-                 chunk_rows: int = 200_000) -> dict:
-    """Read plots in chunks, track them and write tracks incrementally; returns a summary.
-
-    Memory is bounded by one chunk of plots plus the live tracks (Parquet input is
-    streamed; CSV input is read whole first).
-    """
-    from skytrack.io import ReadReport, iter_plots, read_sensors
-    from skytrack.io.tables import count_rows
-    from skytrack.io.tracks import TrackWriter
-    from skytrack.tracker import Tracker
-
-    sensor_set = read_sensors(sensors_path)
-    report = ReadReport(file=str(plots_path)) if lenient else None
-    total = count_rows(plots_path)
-    tracker = Tracker(sensor_set, config)
-    started = time.perf_counter()
-    plots_read = 0
-    with TrackWriter(out) as writer, _progress() as progress:
-        task = progress.add_task("track", total=total)
-        for chunk in iter_plots(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
-            tracker.feed(chunk, source=str(plots_path))
-            writer.write(tracker.drain())
-            plots_read += len(chunk)
-            progress.update(task, completed=plots_read, total=total or plots_read)
-        tracker.finish()
-        writer.write(tracker.drain())
-        progress.update(task, completed=plots_read, total=total or plots_read)
-    elapsed = time.perf_counter() - started
-    return {
-        "plots": plots_read, "tracks_file": str(out), "track_rows": writer.rows, "elapsed_s": elapsed,
-        "stats": dict(tracker.stats), "warnings": list(tracker.warnings), "report": report,
-        "tracking_dim": tracker.dim,
-    }
-
-
-def _print_tracking_summary(summary: dict) -> None:
-    stats = summary["stats"]
-    report = summary["report"]
+def _print_tracking_summary(summary) -> None:
+    """Print a :class:`skytrack.app.run.RunSummary`."""
+    stats = summary.stats
+    report = summary.report
     if report is not None and not report.ok:
         error_console.print(f"[yellow]lenient read:[/] {report}", highlight=False)
-    for warning in summary["warnings"]:
+    for warning in summary.warnings:
         error_console.print(f"[yellow]warning:[/] {warning}")
-    rate = summary["plots"] / summary["elapsed_s"] if summary["elapsed_s"] > 0 else float("nan")
     table = Table(title="tracking", show_header=False)
-    table.add_row("plots", f"{summary['plots']} ({stats.get('plots_assigned', 0)} assigned)")
+    table.add_row("plots", f"{summary.plots} ({stats.get('plots_assigned', 0)} assigned)")
     table.add_row("tracks confirmed", str(stats.get("tracks_confirmed", 0)))
     table.add_row("tentative tracks dropped", str(stats.get("tentative_dropped", 0)))
     table.add_row("tracks deleted", str(stats.get("tracks_deleted", 0)))
     if stats.get("plots_height_above_slant_range"):
         table.add_row("plots placed over the radar", f"{stats['plots_height_above_slant_range']} (height above slant range)")
-    table.add_row("tracking", f"{summary['tracking_dim']}-D")
-    table.add_row("track rows written", f"{summary['track_rows']} -> {summary['tracks_file']}")
-    table.add_row("time", f"{summary['elapsed_s']:.2f} s ({rate:,.0f} plots/s, reading and writing included)")
+    table.add_row("tracking", f"{summary.tracking_dim}-D")
+    table.add_row("track rows written", f"{summary.track_rows} -> {summary.tracks_file}")
+    table.add_row("time", f"{summary.elapsed_s:.2f} s ({summary.plots_per_s:,.0f} plots/s, reading and writing included)")
     console.print(table)
 
 
@@ -300,6 +270,10 @@ def demo(
     seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise.")] = None,
 ) -> None:
     """Simulate the demo scenario, track it, evaluate it and write a report folder."""
-    from skytrack.cli.demo import run_demo
+    from skytrack.app.demo import run_demo
+    from skytrack.cli.demo import print_demo_checks
 
-    run_demo(out, scenario, seed, console=console, progress_factory=_progress, print_evaluation=_print_evaluation)
+    with _progress() as progress:
+        result = run_demo(out, scenario, seed, progress=progress)
+    _print_evaluation(result.evaluation, result.metrics_path)
+    print_demo_checks(console, result)

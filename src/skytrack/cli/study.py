@@ -19,9 +19,6 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from skytrack.analysis import singer_missed as study
-from skytrack.sim.singer_truth import simulate_singer_1d
-
 study_app = typer.Typer(help="Reproduce the studies of the papers in shared/specs.", no_args_is_help=True)
 
 #: E5: for P_D >= this, the Monte Carlo ratios must lie within 1 +- MC_BAND
@@ -81,6 +78,8 @@ def singer_missed(
     require_fes11: float | None = typer.Option(None, "--require-fes11", help="E6: the same for FES11"),
 ) -> None:
     """Singer filtering / one-scan extrapolation accuracy with missed detections (spec 000 §6)."""
+    from skytrack.analysis import singer_missed as study  # the library is imported here: --help stays light
+
     console = Console()
     try:
         config = study.StudyConfig(
@@ -137,8 +136,11 @@ def singer_missed(
         raise typer.Exit(code=1)
 
 
-def _run_monte_carlo(console: Console, config: study.StudyConfig, mc_runs: int, out: Path) -> bool:
+def _run_monte_carlo(console: Console, config, mc_runs: int, out: Path) -> bool:
     """E5 with a progress bar; returns True if a checked ratio is outside 1 ± MC_BAND."""
+    from skytrack.analysis import singer_missed as study
+    from skytrack.sim.singer_truth import simulate_singer_1d
+
     columns = (TextColumn("Monte Carlo"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     try:
         with Progress(*columns, console=console, transient=False) as progress:

@@ -1,0 +1,90 @@
+"""The tracking pipeline as a library call (skytrack.app.run.run_tracking)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skytrack.app.run import RunSummary, run_tracking
+from skytrack.app.simulate import run_simulation, write_simulation
+from skytrack.io import read_tracks
+from skytrack.tracker import Tracker, TrackerConfig
+
+
+@pytest.fixture(scope="module")
+def crossing(tmp_path_factory):
+    """The bundled crossing scenario written as Parquet and CSV inputs."""
+    out = tmp_path_factory.mktemp("crossing")
+    stages = []
+    result = run_simulation("crossing", seed=5, progress=lambda stage, done, total: stages.append((stage, done, total)))
+    assert stages[0] == ("simulate", 0.0, 1.0) and stages[-1] == ("simulate", 1.0, 1.0)
+    paths = write_simulation(result, out, "parquet")
+    csv_paths = write_simulation(result, out / "csv", "csv")
+    return result, paths, csv_paths
+
+
+def _assert_same_tracks(got: pd.DataFrame, want: pd.DataFrame) -> None:
+    assert len(got) == len(want) > 0
+    for column in want.columns:
+        a, b = got[column].to_numpy(), want[column].to_numpy()
+        if b.dtype.kind == "f":
+            np.testing.assert_allclose(a.astype(float), b, rtol=1e-9, atol=1e-9, equal_nan=True, err_msg=column)
+        else:
+            assert [None if pd.isna(v) else v for v in a] == [None if pd.isna(v) else v for v in b], column
+
+
+@pytest.mark.parametrize("chunk_rows", [200_000, 97])
+def test_run_tracking_gives_the_tracks_of_tracker_run(crossing, tmp_path, chunk_rows):
+    result, paths, _ = crossing
+    config = TrackerConfig(full_covariance=True)
+    calls = []
+    summary = run_tracking(paths["plots"], paths["sensors"], tmp_path / "tracks.parquet", config,
+                           chunk_rows=chunk_rows, progress=lambda *args: calls.append(args))
+    assert isinstance(summary, RunSummary)
+    expected_tracker = Tracker(result.sensors, config)
+    expected = expected_tracker.run(result.plots)
+    _assert_same_tracks(read_tracks(tmp_path / "tracks.parquet"), read_tracks_like(expected, tmp_path))
+    assert summary.plots == len(result.plots)
+    assert summary.track_rows == len(expected)
+    assert summary.tracks_file == str(tmp_path / "tracks.parquet")
+    assert summary.tracking_dim == expected_tracker.dim
+    assert summary.stats == dict(expected_tracker.stats)
+    assert summary.report is None and summary.elapsed_s > 0
+    assert calls[0] == ("track", 0, len(result.plots)) and calls[-1] == ("track", len(result.plots), len(result.plots))
+    assert len(calls) == 2 + -(-len(result.plots) // chunk_rows)
+
+
+def read_tracks_like(tracks: pd.DataFrame, tmp_path) -> pd.DataFrame:
+    """``tracks`` after the same write/read round trip as the pipeline's output."""
+    from skytrack.io import write_tracks
+
+    return read_tracks(write_tracks(tracks, tmp_path / "expected.parquet"))
+
+
+def test_csv_input_gives_the_same_tracks_as_parquet(crossing, tmp_path):
+    _, paths, csv_paths = crossing
+    from_parquet = run_tracking(paths["plots"], paths["sensors"], tmp_path / "a.parquet", chunk_rows=150)
+    from_csv = run_tracking(csv_paths["plots"], csv_paths["sensors"], tmp_path / "b.parquet", chunk_rows=150,
+                            progress=lambda stage, done, total: None)
+    assert from_csv.plots == from_parquet.plots
+    _assert_same_tracks(read_tracks(tmp_path / "b.parquet"), read_tracks(tmp_path / "a.parquet"))
+
+
+def test_lenient_run_reports_skipped_rows(crossing, tmp_path):
+    result, paths, _ = crossing
+    plots = result.plots.copy()
+    plots.loc[[3, 10], "azimuth_deg"] = 400.0
+    plots.to_parquet(tmp_path / "plots.parquet", index=False)
+    summary = run_tracking(tmp_path / "plots.parquet", paths["sensors"], tmp_path / "t.csv", lenient=True, chunk_rows=64)
+    assert summary.report is not None and summary.report.rows_skipped == 2
+    assert summary.plots == len(plots) - 2
+    data = summary.to_dict()
+    assert set(data) == {"plots", "tracks_file", "track_rows", "elapsed_s", "stats", "warnings", "report", "tracking_dim"}
+    assert "2 skipped" in data["report"]
+
+
+def test_bad_chunk_rows_is_refused(crossing, tmp_path):
+    _, paths, _ = crossing
+    with pytest.raises(ValueError, match="chunk_rows"):
+        run_tracking(paths["plots"], paths["sensors"], tmp_path / "t.parquet", chunk_rows=0)
