@@ -6,8 +6,6 @@ The CLI cannot import TrackerConfig at start-up (numpy, scipy behind it), so
 
 from __future__ import annotations
 
-import dataclasses
-
 import typer.main
 
 from skytrack.app.run import DEFAULT_CHUNK_ROWS
@@ -35,7 +33,7 @@ OPTION_FIELDS = {
 
 
 def _field_defaults() -> dict:
-    return {f.name: f.default for f in dataclasses.fields(TrackerConfig) if f.default is not dataclasses.MISSING}
+    return TrackerConfig().to_dict(flat=True)
 
 
 def _track_option_defaults() -> dict:

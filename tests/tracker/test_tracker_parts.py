@@ -1,5 +1,6 @@
 """Tracker building blocks: configuration checks, the structure-of-arrays track bank, plot
-columns, beam phase and beam-crossing times (skytrack.tracker.config / bank / plots)."""
+batches, beam phase and beam-crossing times (skytrack.tracker.config / bank / schedule,
+skytrack.core.plots)."""
 
 import numpy as np
 import pandas as pd
@@ -7,15 +8,12 @@ import pytest
 
 from skytrack.geo.sensors import Sensor, SensorSet
 from skytrack.models.motion import ConstantVelocityAxis, SingerAxisModel
+from skytrack.core.plots import FT_TO_M, PlotBatch
+from skytrack.filters.kalman import KalmanFilter
+from skytrack.models.motion import constant_velocity
 from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.tracker.config import TrackerConfig
-from skytrack.tracker.plots import (
-    FT_TO_M,
-    PlotColumns,
-    beam_crossing_time,
-    check_time_order,
-    estimate_beam_phase,
-)
+from skytrack.tracker.schedule import beam_crossing_time, check_time_order, estimate_beam_phase
 from skytrack.tracker.tracker import Tracker
 
 # ----------------------------------------------------------------------------- configuration
@@ -53,7 +51,32 @@ def test_config_motion_models():
     assert cv.dim == 4 and cv.axes[0] == ConstantVelocityAxis(2.5)
     singer = TrackerConfig(model="singer", singer_tau_s=30.0, singer_sigma_a=3.0, discretization="paper").motion_model(3)
     assert singer.dim == 9 and singer.axes[2] == SingerAxisModel(30.0, 3.0, "paper")
-    assert TrackerConfig().to_dict()["confirm_m"] == 3
+    assert TrackerConfig().to_dict(flat=True)["confirm_m"] == 3
+    assert TrackerConfig().to_dict()["lifecycle"]["confirm_m"] == 3
+
+
+def test_config_nested_form_round_trips_and_names_bad_keys(tmp_path):
+    config = TrackerConfig(confirm_m=2, confirm_n=3, model="singer", p_gate=0.99, init="two-point")
+    assert config.lifecycle.confirm_m == 2 and config.motion.model == "singer" and config.initiation.method == "two-point"
+    assert TrackerConfig.from_dict(config.to_dict()) == config
+    path = tmp_path / "tracker.yaml"
+    path.write_text("lifecycle:\n  confirm_m: 2\n  confirm_n: 3\nfilter:\n  kind: imm\n")
+    loaded = TrackerConfig.from_file(path)
+    assert loaded.confirm_m == 2 and loaded.filter.kind == "imm"
+    json_path = tmp_path / "tracker.json"
+    json_path.write_text('{"association": {"p_gate": 0.99}}')
+    assert TrackerConfig.from_file(json_path).p_gate == 0.99
+    path.write_text("lifecycle:\n  confirm_k: 2\n")
+    with pytest.raises(ValueError, match=r"section lifecycle: unknown key\(s\) \['confirm_k'\]"):
+        TrackerConfig.from_file(path)
+    path.write_text("tracking:\n  x: 1\n")
+    with pytest.raises(ValueError, match="unknown section"):
+        TrackerConfig.from_file(path)
+    path.write_text("lifecycle:\n  confirm_m: 5\n")
+    with pytest.raises(ValueError, match="section lifecycle: need 1 <= confirm_m <= confirm_n"):
+        TrackerConfig.from_file(path)
+    with pytest.raises(ValueError, match="unknown tracker setting 'confirmm'"):
+        TrackerConfig(confirmm=2)
 
 
 def test_gate_threshold_is_the_chi_square_quantile(sim, radar1):
@@ -88,24 +111,47 @@ def test_tracking_dimension_follows_the_radars(sim, radar1):
 
 
 def test_bank_append_defaults_and_keep():
-    bank = TrackBank(4)
+    kalman = KalmanFilter(constant_velocity(2, 1.0))
+    bank = TrackBank(kalman)
     assert len(bank) == 0
-    bank.append(np.arange(8.0).reshape(2, 4), np.broadcast_to(np.eye(4), (2, 4, 4)).copy(),
-                t=np.array([1.0, 2.0]), track_id=np.array([7, 8]), status=TENTATIVE, mode3a=np.array(["1234", None]))
-    bank.append(np.ones((1, 4)), np.eye(4)[None], t=np.array([3.0]), track_id=np.array([9]), status=CONFIRMED)
+    bank.append(kalman.initiate(np.arange(8.0).reshape(2, 4), np.broadcast_to(np.eye(4), (2, 4, 4))),
+                t=np.array([1.0, 2.0]), track_id=np.array([7, 8]), status=TENTATIVE, mode3a=np.array([0o1234, -1]))
+    bank.append(kalman.initiate(np.ones((1, 4)), np.eye(4)[None]), t=np.array([3.0]), track_id=np.array([9]),
+                status=CONFIRMED)
     assert len(bank) == 3
     np.testing.assert_array_equal(bank.track_id, [7, 8, 9])
     np.testing.assert_array_equal(bank.status, [TENTATIVE, TENTATIVE, CONFIRMED])
     assert bank.track_id.dtype == np.int64 and bank.hit_bits.dtype == np.uint32
     assert np.isnan(bank.alt_m).all() and np.isnan(bank.confirmed_at).all()  # NaN defaults
     np.testing.assert_array_equal(bank.n_updates, [0, 0, 0])
-    assert list(bank.mode3a) == ["1234", None, None]
+    np.testing.assert_array_equal(bank.mode3a, [0o1234, -1, -1])  # -1: unknown
     bank.keep(np.array([True, False, True]))
     np.testing.assert_array_equal(bank.track_id, [7, 9])
-    np.testing.assert_array_equal(bank.x, [[0.0, 1.0, 2.0, 3.0], [1.0, 1.0, 1.0, 1.0]])
-    assert bank.P.shape == (2, 4, 4) and list(bank.mode3a) == ["1234", None]
-    bank.append(np.zeros((0, 4)), np.zeros((0, 4, 4)))  # appending nothing is a no-op
+    np.testing.assert_array_equal(bank.estimate().x, [[0.0, 1.0, 2.0, 3.0], [1.0, 1.0, 1.0, 1.0]])
+    assert bank.estimate().P.shape == (2, 4, 4)
+    np.testing.assert_array_equal(bank.mode3a, [0o1234, -1])
+    bank.append(kalman.initiate(np.zeros((0, 4)), np.zeros((0, 4, 4))))  # appending nothing is a no-op
     assert len(bank) == 2
+
+
+def test_bank_registered_columns_and_checkpoint_round_trip():
+    kalman = KalmanFilter(constant_velocity(2, 1.0))
+    bank = TrackBank(kalman)
+    bank.register_column("score", np.float64, 0.5)
+    bank.append(kalman.initiate(np.arange(8.0).reshape(2, 4), np.broadcast_to(np.eye(4), (2, 4, 4))),
+                track_id=np.array([1, 2]), score=np.array([1.5, 2.5]))
+    bank.append(kalman.initiate(np.ones((1, 4)), np.eye(4)[None]), track_id=np.array([3]))
+    np.testing.assert_array_equal(bank.score, [1.5, 2.5, 0.5])
+    with pytest.raises(ValueError, match="exists already"):
+        bank.register_column("score", np.float64, 0.0)
+    with pytest.raises(ValueError, match="no column"):
+        bank.append(kalman.initiate(np.ones((1, 4)), np.eye(4)[None]), unknown=1)
+    saved = bank.to_arrays()
+    other = TrackBank(kalman)
+    other.register_column("score", np.float64, 0.5)
+    other.load_arrays(saved)
+    for name, values in other.to_arrays().items():
+        np.testing.assert_array_equal(values, saved[name])
 
 
 # ----------------------------------------------------------------------------- plot columns
@@ -118,27 +164,29 @@ def test_plot_columns_units_and_optional_columns(sim, radar1):
         "azimuth_deg": [90.0, 180.0], "mode_c_ft": [10000.0, None], "mode3a": ["7000", None],
         "elevation_deg": [1.0, np.nan],
     })
-    plots = PlotColumns.from_frame(frame, sensors)
+    plots = PlotBatch.from_frame(frame, sensors.names)
     np.testing.assert_allclose(plots.azimuth, [np.pi / 2, np.pi])
     np.testing.assert_allclose(plots.elevation, [np.radians(1.0), np.nan])
     np.testing.assert_allclose(plots.mode_c_m, [10000.0 * FT_TO_M, np.nan])
     assert FT_TO_M == 0.3048
     assert np.isnan(plots.range_rate).all() and plots.platform.shape == (2, 6) and np.isnan(plots.platform).all()
-    assert list(plots.mode3a) == ["7000", None] and list(plots.iff) == [None, None]
+    np.testing.assert_array_equal(plots.mode3a, [0o7000, -1])
+    np.testing.assert_array_equal(plots.iff, [-1, -1])
     np.testing.assert_array_equal(plots.sensor, [0, 0])
-    both = PlotColumns.concat([plots, plots.take(np.array([1]))])
-    assert len(both) == 3 and both.mode3a[2] is None
+    np.testing.assert_array_equal(plots.row, [0, 1])
+    both = PlotBatch.concat([plots, plots.take(np.array([1]))])
+    assert len(both) == 3 and both.mode3a[2] == -1
 
 
 def test_check_time_order_names_the_row_and_remembers_the_last_time(sim, radar1):
     sensors = sim.sensor_set([radar1])
     last = np.full(1, -np.inf)
-    ok = PlotColumns.from_frame(pd.DataFrame({"time": [1.0, 2.0, 2.0], "sensor": "radar1", "range_m": 1.0,
-                                              "azimuth_deg": 0.0}), sensors)
+    ok = PlotBatch.from_frame(pd.DataFrame({"time": [1.0, 2.0, 2.0], "sensor": "radar1", "range_m": 1.0,
+                                            "azimuth_deg": 0.0}), sensors.names)
     check_time_order(ok, sensors, last)
     assert last[0] == 2.0
-    later = PlotColumns.from_frame(pd.DataFrame({"time": [3.0, 1.5], "sensor": "radar1", "range_m": 1.0,
-                                                 "azimuth_deg": 0.0}), sensors)
+    later = PlotBatch.from_frame(pd.DataFrame({"time": [3.0, 1.5], "sensor": "radar1", "range_m": 1.0,
+                                               "azimuth_deg": 0.0}), sensors.names)
     with pytest.raises(ValueError, match=r"myfile, row 1, column time: .*1\.500000 s after 3\.000000 s"):
         check_time_order(later, sensors, last, source="myfile")
 

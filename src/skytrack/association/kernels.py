@@ -230,3 +230,16 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
             plot_local[pj[k]] = -1
         start = stop
     return chosen, big
+
+
+def sweep_candidates(track_positions, track_sigma, track_margin, plot_positions, plot_sigma, scale,
+                     wide_quantile: float = 0.95):
+    """Compiled counterpart of :func:`skytrack.association.candidates.candidate_pairs` (same arguments)."""
+    n_plots = len(plot_positions)
+    if len(track_positions) == 0 or n_plots == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    limit = float(np.quantile(plot_sigma, wide_quantile)) if n_plots > 20 else np.inf
+    return sweep_pairs(np.ascontiguousarray(track_positions, dtype=float), np.asarray(track_sigma, dtype=float),
+                       np.asarray(track_margin, dtype=float), np.ascontiguousarray(plot_positions, dtype=float),
+                       np.asarray(plot_sigma, dtype=float), float(scale), limit)

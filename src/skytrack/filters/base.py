@@ -82,6 +82,11 @@ class GaussianState(ArrayState):
     def estimate(self) -> "GaussianState":
         return GaussianState(self.x, self.P)
 
+    def reset_estimate(self, rows, x: np.ndarray, P: np.ndarray) -> None:
+        """Replace the estimate of ``rows`` (e.g. by a two-point initialisation), in place."""
+        self.x[rows] = x
+        self.P[rows] = P
+
 
 @dataclass
 class MixtureState(ArrayState):
@@ -97,6 +102,11 @@ class MixtureState(ArrayState):
         d = self.x - x[:, None, :]
         P = np.einsum("nm,nmij->nij", self.mu, self.P + d[..., :, None] * d[..., None, :])
         return GaussianState(x, linalg.symmetrize(P))
+
+    def reset_estimate(self, rows, x: np.ndarray, P: np.ndarray) -> None:
+        """Every mode of ``rows`` takes the estimate ``x``, ``P``; mode probabilities are kept."""
+        self.x[rows] = x[:, None, :]
+        self.P[rows] = P[:, None, :, :]
 
 
 # ---------------------------------------------------------------------------- results

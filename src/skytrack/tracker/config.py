@@ -1,112 +1,88 @@
-"""Tracker configuration: motion model, gating, track management and geometry defaults."""
+"""Tracker configuration: one section per component, loadable from YAML or JSON.
+
+Each section is a small dataclass that lives with its component and checks its own values:
+
+| section | class | where |
+|---|---|---|
+| ``motion`` | :class:`MotionConfig` | this module (builds a :class:`~skytrack.models.motion.MotionModel`) |
+| ``filter`` | :class:`FilterConfig` | this module (a kind of :data:`skytrack.filters.registry.FILTERS` + options) |
+| ``association`` | :class:`~skytrack.tracker.scan.AssociationConfig` | tracker/scan.py |
+| ``geometry`` | :class:`~skytrack.tracker.scan.GeometryConfig` | tracker/scan.py |
+| ``initiation`` | :class:`~skytrack.tracker.initiation.InitiationConfig` | tracker/initiation.py |
+| ``lifecycle`` | :class:`~skytrack.tracker.lifecycle.LifecycleConfig` | tracker/lifecycle.py |
+| ``schedule`` | :class:`~skytrack.tracker.schedule.ScheduleConfig` | tracker/schedule.py |
+| ``output`` | :class:`~skytrack.tracker.output.OutputConfig` | tracker/output.py |
+
+``TrackerConfig.from_file("tracker.yaml")`` reads the nested form (unknown sections or keys
+are errors naming them); ``TrackerConfig(confirm_m=2, model="singer", ...)`` also takes the
+flat names of :data:`FLAT_NAMES` and every flat name can be read as an attribute, so the
+command-line options map one to one.
+
+The defaults (quiet constant velocity plus the manoeuvre switch psi of spec 000 S3) were
+chosen on simulated en-route traffic with 2-3 g turns seen by a 4 s radar; see
+``docs/tracker.md`` for the measured comparison with Singer.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
+from pathlib import Path
 
+from skytrack.core.validate import require_non_negative, require_positive
 from skytrack.models.motion import MotionModel, constant_velocity, singer
+from skytrack.tracker.initiation import InitiationConfig
+from skytrack.tracker.lifecycle import LifecycleConfig
+from skytrack.tracker.output import OutputConfig
+from skytrack.tracker.scan import AssociationConfig, GeometryConfig
+from skytrack.tracker.schedule import ScheduleConfig
 
 MOTION_MODELS = ("singer", "cv")
-INIT_METHODS = ("one-point", "two-point")
 #: manoeuvre process-noise factor by model when none is given: the quiet CV model needs the
 #: switch to follow turns; Singer's own acceleration state covers them (1 = switch off)
 DEFAULT_MANOEUVRE_SCALE = {"cv": 3000.0, "singer": 1.0}
 
 
 @dataclass
-class TrackerConfig:
-    """All tracker settings, with defaults suited to en-route surveillance radars.
-
-    Motion model: ``model`` is ``"cv"`` (white-noise acceleration of PSD ``cv_q``, the
-    default) or ``"singer"`` (per-axis Singer, spec 000; ``singer_tau_s``,
-    ``singer_sigma_a``, ``discretization`` "exact" by default as spec 000 R2 asks for
-    varying step lengths).  The defaults (quiet CV plus the manoeuvre switch below) were
-    chosen on simulated en-route traffic with 2-3 g turns seen by a 4 s radar; see
-    ``docs/tracker.md`` for the measured comparison with Singer.
-
-    Gating: ``p_gate`` is the gate probability P_G; the threshold is the chi-square
-    quantile for the number of measured components (spec 000 R7), or ``gate_threshold``
-    when given.
-
-    Management: a tentative track is confirmed when ``confirm_m`` of its last
-    ``confirm_n`` expected observations were hits, and dropped as soon as that cannot
-    happen any more; a confirmed track is deleted after ``delete_misses`` consecutive
-    misses or when its position standard deviation exceeds ``max_position_sigma_m``.
-
-    Initialisation: ``"one-point"`` starts from one plot with zero velocity and a velocity
-    prior of ``init_sigma_v`` per axis; ``"two-point"`` does the same but replaces the state
-    after the second plot by the two-point difference (position of the second plot,
-    velocity from the difference, covariances from both plots' noise).
-
-    Manoeuvre switch (spec 000 S3, the indicator psi): every track carries a flag psi.
-    While psi = 0 the process noise is the model's; while psi = 1 it is multiplied by
-    ``manoeuvre_q_scale``.  psi is set when the exponentially smoothed normalised
-    innovation squared (NIS per component, smoothing weight ``manoeuvre_memory`` on the
-    past) exceeds ``manoeuvre_on_nis`` and cleared when it falls below
-    ``manoeuvre_off_nis``; ``manoeuvre_q_scale = 1`` switches the mechanism off, and
-    ``None`` (the default) takes 3000 for CV and 1 (off) for Singer.  The flag
-    is a function of past innovations only, as Theorem 1 (2a) requires.
-
-    Geometry: ``tracking_dim`` 2 tracks in the horizontal plane (2-D radars, slant range
-    projected with the Mode C altitude or ``default_altitude_m``), 3 in space; ``None``
-    picks 3 when every radar is 3-D and 2 otherwise.
-    """
+class MotionConfig:
+    """``model`` "cv" (white-noise acceleration of PSD ``cv_q``) or "singer" (spec 000: ``singer_tau_s``,
+    ``singer_sigma_a``, ``discretization`` "exact" by default as R2 asks for varying steps)."""
 
     model: str = "cv"
+    cv_q: float = 0.5
     singer_tau_s: float = 20.0
     singer_sigma_a: float = 4.0
     discretization: str = "exact"
-    cv_q: float = 0.5
-    manoeuvre_q_scale: float | None = None
-    manoeuvre_on_nis: float = 3.0
-    manoeuvre_off_nis: float = 1.2
-    manoeuvre_memory: float = 0.5
-    p_gate: float = 0.9995
-    gate_threshold: float | None = None
-    confirm_m: int = 3
-    confirm_n: int = 4
-    delete_misses: int = 5
-    max_position_sigma_m: float = 5000.0
-    init: str = "one-point"
-    init_sigma_v: float = 150.0
-    tracking_dim: int | None = None
-    default_altitude_m: float = 6000.0
-    default_altitude_sigma_m: float = 3000.0
-    mode_c_sigma_m: float = 30.0
-    use_range_rate: bool = True
-    sectors_per_scan: int | None = None
-    window_s: float = 1.0
-    output_interval_s: float | None = None
-    full_covariance: bool = False
-    extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.model not in MOTION_MODELS:
             raise ValueError(f"model must be one of {MOTION_MODELS}, got {self.model!r}")
-        if self.init not in INIT_METHODS:
-            raise ValueError(f"init must be one of {INIT_METHODS}, got {self.init!r}")
         if self.discretization not in ("paper", "exact"):
             raise ValueError(f"discretization must be 'paper' or 'exact', got {self.discretization!r}")
-        if not 0.0 < self.p_gate < 1.0:
-            raise ValueError(f"p_gate must be in (0, 1), got {self.p_gate}")
-        if self.gate_threshold is not None and not self.gate_threshold > 0:
-            raise ValueError(f"gate_threshold must be > 0, got {self.gate_threshold}")
-        if not (1 <= self.confirm_m <= self.confirm_n <= 32):
-            raise ValueError(f"need 1 <= confirm_m <= confirm_n <= 32, got {self.confirm_m}/{self.confirm_n}")
-        if self.delete_misses < 1:
-            raise ValueError(f"delete_misses must be >= 1, got {self.delete_misses}")
-        if self.tracking_dim not in (None, 2, 3):
-            raise ValueError(f"tracking_dim must be 2, 3 or None, got {self.tracking_dim}")
-        for name in ("singer_tau_s", "init_sigma_v", "max_position_sigma_m", "default_altitude_sigma_m",
-                     "mode_c_sigma_m", "window_s"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {value}")
-        for name in ("singer_sigma_a", "cv_q"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {value}")
+        require_positive(self, "singer_tau_s")
+        require_non_negative(self, "singer_sigma_a", "cv_q")
+
+    def build(self, ndim: int) -> MotionModel:
+        if self.model == "singer":
+            return singer(ndim, self.singer_tau_s, self.singer_sigma_a, self.discretization)
+        return constant_velocity(ndim, self.cv_q)
+
+
+@dataclass
+class FilterConfig:
+    """A registered filter kind and its options.  For "kalman-psi", ``manoeuvre_q_scale`` None
+    takes the motion model's default (3000 for CV, 1 = off for Singer)."""
+
+    kind: str = "kalman-psi"
+    manoeuvre_q_scale: float | None = None
+    manoeuvre_on_nis: float = 3.0
+    manoeuvre_off_nis: float = 1.2
+    manoeuvre_memory: float = 0.5
+    options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
         if self.manoeuvre_q_scale is not None and not (
             math.isfinite(self.manoeuvre_q_scale) and self.manoeuvre_q_scale >= 1.0
         ):
@@ -115,22 +91,129 @@ class TrackerConfig:
             raise ValueError(f"manoeuvre_memory must be in [0, 1), got {self.manoeuvre_memory}")
         if not 0.0 < self.manoeuvre_off_nis <= self.manoeuvre_on_nis:
             raise ValueError("need 0 < manoeuvre_off_nis <= manoeuvre_on_nis")
-        if self.sectors_per_scan is not None and self.sectors_per_scan < 1:
-            raise ValueError(f"sectors_per_scan must be >= 1, got {self.sectors_per_scan}")
-        if self.output_interval_s is not None and not self.output_interval_s > 0:
-            raise ValueError(f"output_interval_s must be > 0, got {self.output_interval_s}")
+
+    def build(self, motion: MotionModel, motion_config: MotionConfig):
+        from skytrack.filters.registry import build_filter
+
+        options = dict(self.options)
+        if self.kind == "kalman-psi":
+            scale = self.manoeuvre_q_scale
+            options.setdefault("scale", DEFAULT_MANOEUVRE_SCALE[motion_config.model] if scale is None else scale)
+            options.setdefault("on", self.manoeuvre_on_nis)
+            options.setdefault("off", self.manoeuvre_off_nis)
+            options.setdefault("memory", self.manoeuvre_memory)
+        return build_filter(self.kind, motion, **options)
+
+
+SECTIONS = {
+    "motion": MotionConfig, "filter": FilterConfig, "association": AssociationConfig,
+    "geometry": GeometryConfig, "initiation": InitiationConfig, "lifecycle": LifecycleConfig,
+    "schedule": ScheduleConfig, "output": OutputConfig,
+}
+#: flat name -> (section, field): the command-line vocabulary
+FLAT_NAMES: dict[str, tuple[str, str]] = {
+    **{f.name: (section, f.name) for section, cls in SECTIONS.items()
+       for f in dataclasses.fields(cls) if f.name != "options"},
+    "init": ("initiation", "method"),
+    "init_sigma_v": ("initiation", "sigma_v"),
+}
+FLAT_NAMES.pop("method")
+FLAT_NAMES.pop("sigma_v")
+
+
+class TrackerConfig:
+    """All tracker settings by section (see the module docstring); flat names work too."""
+
+    def __init__(self, motion: MotionConfig | None = None, filter: FilterConfig | None = None,
+                 association: AssociationConfig | None = None, geometry: GeometryConfig | None = None,
+                 initiation: InitiationConfig | None = None, lifecycle: LifecycleConfig | None = None,
+                 schedule: ScheduleConfig | None = None, output: OutputConfig | None = None,
+                 extra: dict | None = None, **flat) -> None:
+        given = {"motion": motion, "filter": filter, "association": association, "geometry": geometry,
+                 "initiation": initiation, "lifecycle": lifecycle, "schedule": schedule, "output": output}
+        by_section: dict[str, dict] = {name: {} for name in SECTIONS}
+        for name, value in flat.items():
+            if name not in FLAT_NAMES:
+                raise ValueError(f"unknown tracker setting {name!r}; known: {', '.join(sorted(FLAT_NAMES))}")
+            section, key = FLAT_NAMES[name]
+            by_section[section][key] = value
+        for name, cls in SECTIONS.items():
+            base = given[name]
+            if base is None:
+                value = cls(**by_section[name])
+            else:
+                value = dataclasses.replace(base, **by_section[name]) if by_section[name] else base
+            object.__setattr__(self, name, value)
+        self.extra = dict(extra or {})
+
+    def __getattr__(self, name: str):
+        if name in FLAT_NAMES:
+            section, key = FLAT_NAMES[name]
+            return getattr(object.__getattribute__(self, section), key)
+        raise AttributeError(f"TrackerConfig has no setting {name!r}")
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, TrackerConfig) and self.to_dict() == other.to_dict()
+
+    def __repr__(self) -> str:
+        return f"TrackerConfig({self.to_dict()!r})"
 
     @property
     def manoeuvre_scale(self) -> float:
         """The process-noise factor in use while psi = 1 (``manoeuvre_q_scale`` or the model's default)."""
-        if self.manoeuvre_q_scale is not None:
-            return self.manoeuvre_q_scale
-        return DEFAULT_MANOEUVRE_SCALE[self.model]
+        if self.filter.manoeuvre_q_scale is not None:
+            return self.filter.manoeuvre_q_scale
+        return DEFAULT_MANOEUVRE_SCALE[self.motion.model]
 
     def motion_model(self, ndim: int) -> MotionModel:
-        if self.model == "singer":
-            return singer(ndim, self.singer_tau_s, self.singer_sigma_a, self.discretization)
-        return constant_velocity(ndim, self.cv_q)
+        return self.motion.build(ndim)
 
-    def to_dict(self) -> dict:
-        return asdict(self)
+    def to_dict(self, flat: bool = False) -> dict:
+        """The nested form (what :meth:`from_dict` reads), or ``flat`` names -> values."""
+        if flat:
+            return {name: getattr(self, name) for name in FLAT_NAMES}
+        nested = {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
+        nested["extra"] = dict(self.extra)
+        return nested
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str = "tracker configuration") -> "TrackerConfig":
+        if not isinstance(data, dict):
+            raise ValueError(f"{source}: expected a mapping of sections, got {type(data).__name__}")
+        unknown = [k for k in data if k not in SECTIONS and k != "extra"]
+        if unknown:
+            raise ValueError(f"{source}: unknown section(s) {unknown}; sections: {', '.join(SECTIONS)}")
+        sections = {}
+        for name, values in data.items():
+            if name == "extra":
+                continue
+            if not isinstance(values, dict):
+                raise ValueError(f"{source}, section {name}: expected a mapping, got {values!r}")
+            known = {f.name for f in dataclasses.fields(SECTIONS[name])}
+            bad = [k for k in values if k not in known]
+            if bad:
+                raise ValueError(f"{source}, section {name}: unknown key(s) {bad}; known: {', '.join(sorted(known))}")
+            try:
+                sections[name] = SECTIONS[name](**values)
+            except ValueError as exc:
+                raise ValueError(f"{source}, section {name}: {exc}") from None
+        return cls(**sections, extra=data.get("extra"))
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "TrackerConfig":
+        """Read a YAML (``.yaml``/``.yml``) or JSON configuration file."""
+        path = Path(path)
+        text = path.read_text()
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            try:
+                data = yaml.safe_load(text)
+            except yaml.YAMLError as exc:
+                raise ValueError(f"{path}: not valid YAML ({exc})") from None
+        else:
+            try:
+                data = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"{path}, line {exc.lineno}: not valid JSON ({exc.msg})") from None
+        return cls.from_dict(data or {}, source=str(path))

@@ -1,0 +1,25 @@
+"""Registries of association parts: scorers and assigners by name.
+
+Adding a rule (fuzzy, maximum-likelihood, greedy, sequential...) is one module plus one
+entry here; the tracker's ``association`` configuration section names them.
+"""
+
+from __future__ import annotations
+
+from skytrack.association.gnn import GNNAssigner
+from skytrack.association.scoring import LogLikelihoodScorer, MahalanobisScorer
+
+SCORERS = {"d2": MahalanobisScorer, "loglik": LogLikelihoodScorer}
+ASSIGNERS = {"gnn": GNNAssigner}
+
+
+def build_scorer(name: str, **options):
+    if name not in SCORERS:
+        raise ValueError(f"unknown scorer {name!r}; registered: {', '.join(sorted(SCORERS))}")
+    return SCORERS[name](**options)
+
+
+def build_assigner(name: str, **options):
+    if name not in ASSIGNERS:
+        raise ValueError(f"unknown assigner {name!r}; registered: {', '.join(sorted(ASSIGNERS))}")
+    return ASSIGNERS[name](**options)

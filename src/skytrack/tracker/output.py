@@ -1,0 +1,101 @@
+"""Track output: output instants and the rows of the tracks table (docs/formats.md).
+
+Confirmed tracks are reported at output instants — the end of every scan of the first
+radar, or every ``output_interval_s`` — predicted to the instant.  Rows are kept as column
+arrays per instant; one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`.
+2-D tracks carry ``z`` null and their last Mode C altitude as ``alt_m``; lat/lon come from
+the ENU position (at the last plot's height for 2-D tracks).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from skytrack.core.plots import decode_icao24, decode_iff, decode_mode3a
+from skytrack.core.tracks import covariance_columns
+from skytrack.geo.wgs84 import enu_to_geodetic
+from skytrack.tracker.bank import TrackBank
+
+
+@dataclass
+class OutputConfig:
+    output_interval_s: float | None = None
+    full_covariance: bool = False
+
+    def __post_init__(self) -> None:
+        if self.output_interval_s is not None and not self.output_interval_s > 0:
+            raise ValueError(f"output_interval_s must be > 0, got {self.output_interval_s}")
+
+
+class OutputClock:
+    """When to report: every output interval, else every scan of the first radar, else every window."""
+
+    def __init__(self, config: OutputConfig, rotating: bool, period: float, window_s: float) -> None:
+        self.config = config
+        self.rotating = rotating
+        self.period = period
+        self.window_s = window_s
+        self.next: float | None = None
+
+    def start(self, first_time: float, phase: float) -> None:
+        step = self.config.output_interval_s
+        if step is not None:
+            self.next = math.floor(first_time / step) * step + step
+        elif self.rotating and not np.isnan(phase):
+            self.next = phase + (math.floor((first_time - phase) / self.period) + 1) * self.period
+        else:
+            self.next = first_time + self.window_s
+
+    @property
+    def step(self) -> float:
+        if self.config.output_interval_s is not None:
+            return self.config.output_interval_s
+        return float(self.period) if self.rotating else self.window_s
+
+    def instants_until(self, limit: float):
+        """Output instants not after ``limit`` (advances the clock)."""
+        if self.next is None:
+            return
+        while self.next <= limit + 1e-9:
+            yield self.next
+            self.next += self.step
+
+
+def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank, dim: int,
+               order: int, origin, full_covariance: bool) -> dict[str, np.ndarray]:
+    """The tracks-table columns of ``rows`` of ``bank`` with states ``x``, ``P`` at ``instant``."""
+    count = len(rows)
+    nan = np.full(count, np.nan)
+    pos = np.arange(dim) * order
+    vel = pos + 1
+    columns: dict[str, object] = {"time": np.full(count, instant), "track_id": bank.track_id[rows]}
+    for axis, name in enumerate("xyz"):
+        columns[name] = x[:, pos[axis]] if axis < dim else nan
+    for axis, name in enumerate(("vx", "vy", "vz")):
+        columns[name] = x[:, vel[axis]] if axis < dim else nan
+    for axis, name in enumerate("xyz"):
+        columns[f"var_{name}"] = P[:, pos[axis], pos[axis]] if axis < dim else nan
+    for axis, name in enumerate(("vx", "vy", "vz")):
+        columns[f"var_{name}"] = P[:, vel[axis], vel[axis]] if axis < dim else nan
+    z_for_geodetic = x[:, pos[2]] if dim == 3 else np.nan_to_num(bank.z_hint[rows])
+    lat, lon, alt = enu_to_geodetic(x[:, pos[0]], x[:, pos[1]], z_for_geodetic, origin.lat, origin.lon, origin.alt_m)
+    columns["lat"], columns["lon"] = lat, lon
+    columns["alt_m"] = alt if dim == 3 else bank.alt_m[rows]
+    columns["status"] = np.where(bank.n_misses[rows] > 0, "coasting", "confirmed")
+    columns["n_updates"] = bank.n_updates[rows]
+    columns["n_misses"] = bank.n_misses[rows]
+    columns["mode3a"] = decode_mode3a(bank.mode3a[rows])
+    columns["icao24"] = decode_icao24(bank.icao24[rows])
+    columns["callsign"] = np.full(count, None, dtype=object)
+    columns["iff"] = decode_iff(bank.iff[rows])
+    columns["model_probs"] = np.full(count, None, dtype=object)
+    if full_covariance:
+        n = x.shape[1]
+        iu, ju = np.triu_indices(n)
+        upper = P[:, iu, ju]
+        for k, name in enumerate(covariance_columns(n)):
+            columns[name] = upper[:, k]
+    return columns

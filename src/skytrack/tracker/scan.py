@@ -1,0 +1,279 @@
+"""Scan processing: one window's association, update, initiation and life cycle.
+
+A window of one sensor is processed as a composition of parts:
+
+1. plots are converted to common-frame positions (:func:`skytrack.models.conversion.convert_plots`);
+2. the schedule says which tracks are expected and when the beam crossed each (reference time);
+3. association in stages — confirmed tracks; confirmed quiet tracks that found nothing, through
+   the manoeuvre gate (filters that support it, psi = 1); tentative tracks on the plots left —
+   each stage: the filter predicts the tracks to their reference time, the gate's candidate search
+   (k-d tree reference or compiled sort-and-sweep) bounds the pairs, the filter predicts each
+   pair to its plot's own time (spec 000 Theorem 2 / R7) and innovates it, the scorer gates and
+   costs the pairs, the assigner chooses, and the filter updates the chosen pairs;
+4. expected tracks without a plot record a miss (no update: spec 000 R4);
+5. plots left over start tentative tracks; M-of-N confirmation and deletion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from skytrack.association.kernels import sweep_candidates
+from skytrack.association.base import Pairs
+from skytrack.association.candidates import candidate_pairs
+from skytrack.association.registry import build_assigner, build_scorer
+from skytrack.core.linalg import max_eigenvalue_sym
+from skytrack.core.plots import PlotBatch
+from skytrack.core.validate import require_positive
+from skytrack.geo.sensors import SensorSet
+from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
+from skytrack.models.converted import ConvertedPositionModel
+from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
+from skytrack.tracker.initiation import Initiator
+from skytrack.tracker.lifecycle import Lifecycle
+from skytrack.tracker.schedule import Schedule
+
+#: search-radius safety factor over the exact Mahalanobis bound
+RADIUS_FACTOR = 1.05
+
+
+@dataclass
+class AssociationConfig:
+    """Gate probability ``p_gate`` (threshold: chi-square quantile for the measured components,
+    spec 000 R7) or a fixed ``gate_threshold``; ``scorer`` and ``assigner`` by registered name;
+    ``compiled`` selects the numba kernels (False: the numpy/scipy reference)."""
+
+    p_gate: float = 0.9995
+    gate_threshold: float | None = None
+    scorer: str = "d2"
+    assigner: str = "gnn"
+    compiled: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.p_gate < 1.0:
+            raise ValueError(f"p_gate must be in (0, 1), got {self.p_gate}")
+        if self.gate_threshold is not None and not self.gate_threshold > 0:
+            raise ValueError(f"gate_threshold must be > 0, got {self.gate_threshold}")
+
+
+@dataclass
+class GeometryConfig:
+    """``tracking_dim`` 2 (horizontal plane; 2-D plots placed at the Mode C altitude or
+    ``default_altitude_m``) or 3; None picks 3 when every radar is 3-D.  ``use_range_rate`` adds
+    Doppler range rate of 3-D radars that measure it (spec 000 R9)."""
+
+    tracking_dim: int | None = None
+    default_altitude_m: float = 6000.0
+    default_altitude_sigma_m: float = 3000.0
+    mode_c_sigma_m: float = 30.0
+    use_range_rate: bool = True
+
+    def __post_init__(self) -> None:
+        if self.tracking_dim not in (None, 2, 3):
+            raise ValueError(f"tracking_dim must be 2, 3 or None, got {self.tracking_dim}")
+        require_positive(self, "default_altitude_sigma_m", "mode_c_sigma_m")
+
+
+class ScanProcessor:
+    """Processes windows over a :class:`TrackBank` with one filter and the association parts."""
+
+    def __init__(self, sensors: SensorSet, schedule: Schedule, config, filter, bank: TrackBank,
+                 initiator: Initiator, lifecycle: Lifecycle, stats: Counter, dim: int, order: int) -> None:
+        self.sensors = sensors
+        self.schedule = schedule
+        self.config = config
+        self.filter = filter
+        self.bank = bank
+        self.initiator = initiator
+        self.lifecycle = lifecycle
+        self.stats = stats
+        self.dim = dim
+        self.order = order
+        self.pos = np.arange(dim) * order
+        self.vel = self.pos + 1
+        self.next_track_id = 1
+        assoc = config.association
+        options = {"p_gate": assoc.p_gate, "threshold": assoc.gate_threshold, "max_components": dim + 1}
+        self.scorer = build_scorer(assoc.scorer, **options)
+        self.assigner = build_assigner(assoc.assigner, compiled=assoc.compiled) if assoc.assigner == "gnn" \
+            else build_assigner(assoc.assigner)
+        self.search_scale = RADIUS_FACTOR * math.sqrt(max(self.scorer.gate(m) for m in (dim, dim + 1)))
+        self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", 1.0) != 1.0
+        geometry = config.geometry
+        self.measurements = [
+            ConvertedPositionModel(dim, order, s.sigma_range_rate_mps
+                                   if dim == 3 and geometry.use_range_rate and s.sigma_range_rate_mps is not None else None)
+            for s in sensors.sensors
+        ]
+
+    # ------------------------------------------------------------------ one window
+    def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch) -> None:
+        geometry = self.config.geometry
+        sensor = self.sensors.sensors[s]
+        bank = self.bank
+        has_mode_c = np.isfinite(plots.mode_c_m)
+        altitude = np.where(has_mode_c, plots.mode_c_m, geometry.default_altitude_m)
+        altitude_sigma = np.where(has_mode_c, geometry.mode_c_sigma_m, geometry.default_altitude_sigma_m)
+        converted = convert_plots(sensor, plots.range_m, plots.azimuth, plots.elevation, altitude, altitude_sigma,
+                                  plots.platform)
+        inconsistent = ~converted.consistent
+        if inconsistent.any():
+            self.stats["plots_height_above_slant_range"] += int(inconsistent.sum())
+        n_tracks = len(bank)
+        hit = np.zeros(n_tracks, dtype=bool)
+        plot_used = np.zeros(len(plots), dtype=bool)
+        if n_tracks:
+            position = self._positions_at(0.5 * (w_start + w_end))
+            t_ref, expected, nearby = self.schedule.expectations(s, w_start, w_end, position, bank.last_event,
+                                                                 bank.created)
+            status = np.where(nearby, bank.status, -1)
+            confirmed = status == CONFIRMED
+            # confirmed tracks first; then confirmed quiet tracks that found nothing try the
+            # manoeuvre gate (psi = 1); then tentative tracks on what is left
+            for stage in ("confirmed", "manoeuvre", "tentative"):
+                if stage == "confirmed":
+                    members = confirmed
+                elif stage == "manoeuvre":
+                    if not self.manoeuvre_gate:
+                        continue
+                    members = confirmed & expected & ~hit & ~bank.state.psi
+                else:
+                    members = status == TENTATIVE
+                tracks = np.flatnonzero(members)
+                free = np.flatnonzero(~plot_used)
+                if len(tracks) == 0 or len(free) == 0:
+                    continue
+                assigned_tracks, assigned_plots = self._associate(s, tracks, free, t_ref[tracks], plots, converted,
+                                                                  stage == "manoeuvre")
+                hit[assigned_tracks] = True
+                plot_used[assigned_plots] = True
+            self.lifecycle.record_events(bank, hit, expected, w_end)
+        self.stats["plots_assigned"] += int(plot_used.sum())
+        self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
+        self.lifecycle.manage(bank)
+
+    def _positions_at(self, t: float) -> np.ndarray:
+        """Deterministic 3-D position extrapolation of every track (no covariance), for geometry."""
+        bank = self.bank
+        x = bank.estimate().x
+        dt = t - bank.t
+        pos = x[:, self.pos] + x[:, self.vel] * dt[:, None]
+        if self.order == 3:
+            pos = pos + 0.5 * x[:, self.pos + 2] * np.square(dt)[:, None]
+        if self.dim == 3:
+            return pos
+        return np.column_stack([pos, np.nan_to_num(bank.z_hint, nan=0.0)])
+
+    # ------------------------------------------------------------------ one stage
+    def _associate(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
+        """Gate, score, assign and update one stage; returns (track rows, plot rows) assigned."""
+        bank = self.bank
+        dim = self.dim
+        context = {"manoeuvre": True} if manoeuvre else None
+        empty = np.zeros(0, np.intp)
+        # --- candidate search around the predicted position at the reference time
+        reference = self.filter.predict(bank.state.take(tracks), t_ref - bank.t[tracks], context).estimate()
+        sigma_track = np.sqrt(np.maximum(max_eigenvalue_sym(reference.P[:, self.pos[:, None], self.pos]), 0.0))
+        plot_cov = converted.covariance[free][:, :dim, :dim]
+        sigma_plot = np.sqrt(np.maximum(max_eigenvalue_sym(plot_cov), 0.0))
+        speed = np.linalg.norm(reference.x[:, self.vel], axis=1)
+        schedule = self.schedule
+        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        plot_positions = converted.position[free][:, :dim]
+        search = sweep_candidates if self.config.association.compiled else candidate_pairs
+        ti_local, pj_local = search(reference.x[:, self.pos], sigma_track, speed * margin_s + 1.0, plot_positions,
+                                    sigma_plot, self.search_scale)
+        if len(ti_local) == 0:
+            return empty, empty
+        ti = tracks[ti_local]
+        pj = free[pj_local]
+        self.stats["candidate_pairs"] += len(ti)
+        # --- each candidate predicted to its plot's own time, innovated and scored
+        predicted = self.filter.predict(bank.state.take(ti), plots.time[pj] - bank.t[ti], context)
+        position, covariance = self._pair_measurements(s, ti, pj, plots, converted)
+        model = self.measurements[s]
+        z, measurement_context = self._measurement(s, model, pj, plots, position, covariance)
+        innovation = self.filter.innovate(predicted, z, model, measurement_context if context is None
+                                          else {**measurement_context, **context})
+        scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank))
+        chosen = self.assigner.assign(scores, len(bank), len(plots))
+        if len(chosen) == 0:
+            return empty, empty
+        ti, pj = ti[chosen], pj[chosen]
+        updated, _ = self.filter.update(predicted.take(chosen), z[chosen], innovation.take(chosen))
+        if manoeuvre:
+            self.stats["manoeuvre_gate_hits"] += len(ti)
+        self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen])
+        return ti, pj
+
+    def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
+        dim = self.dim
+        context = {"R": covariance[:, :dim, :dim]}
+        if model.range_rate_sigma is None:
+            return position[:, :dim], context
+        sensor = self.sensors.sensors[s]
+        rate = plots.range_rate[pj]
+        has = np.isfinite(rate)
+        p_s, v_s = sensor_positions(sensor, plots.platform[pj])
+        context.update(has_range_rate=has, sensor_position=p_s, sensor_velocity=v_s, rotation=sensor.rotation)
+        return np.column_stack([position[:, :dim], np.where(has, rate, 0.0)]), context
+
+    def _pair_measurements(self, s, ti, pj, plots: PlotBatch, converted: ConvertedPlots):
+        """Converted 3-D position and covariance per pair; a 2-D plot without Mode C is placed at
+        its track's last Mode C altitude when the track has one."""
+        sensor = self.sensors.sensors[s]
+        position = converted.position[pj]
+        covariance = converted.covariance[pj]
+        if not sensor.is_3d:
+            reuse = ~np.isfinite(plots.mode_c_m[pj]) & np.isfinite(self.bank.alt_m[ti])
+            if reuse.any():
+                redo = convert_plots(
+                    sensor, plots.range_m[pj[reuse]], plots.azimuth[pj[reuse]], plots.elevation[pj[reuse]],
+                    self.bank.alt_m[ti[reuse]], np.full(int(reuse.sum()), self.config.geometry.mode_c_sigma_m),
+                    plots.platform[pj[reuse]],
+                )
+                position[reuse] = redo.position
+                covariance[reuse] = redo.covariance
+        return position, covariance
+
+    def _write_updates(self, ti, pj, updated, plots: PlotBatch, position, covariance) -> None:
+        """Store updated states and attributes; ``position``/``covariance`` are the pairs' plots."""
+        bank = self.bank
+        if self.config.initiation.method == "two-point":
+            second = (bank.n_updates[ti] == 1) & (bank.status[ti] == TENTATIVE)
+            if second.any():
+                first = bank.estimate(ti[second])
+                x, P = self.initiator.two_point(first.x[:, self.pos], first.P[:, self.pos[:, None], self.pos],
+                                                plots.time[pj[second]] - bank.t[ti[second]],
+                                                position[second], covariance[second])
+                updated.reset_estimate(np.flatnonzero(second), x, P)
+        bank.state.put(ti, updated)
+        bank.t[ti] = plots.time[pj]
+        bank.n_updates[ti] += 1
+        bank.n_misses[ti] = 0
+        bank.z_hint[ti] = position[:, 2]
+        mode_c = plots.mode_c_m[pj]
+        bank.alt_m[ti] = np.where(np.isfinite(mode_c), mode_c, bank.alt_m[ti])
+        for column, values in (("mode3a", plots.mode3a), ("icao24", plots.mode_s), ("iff", plots.iff)):
+            new = values[pj]
+            known = new >= 0
+            bank.columns[column][ti[known]] = new[known]
+
+    def _initiate(self, plots: PlotBatch, position: np.ndarray, covariance: np.ndarray) -> None:
+        """Start tentative tracks from unassigned plots."""
+        count = len(plots)
+        if count == 0:
+            return
+        x, P = self.initiator.one_point(position, covariance)
+        ids = np.arange(self.next_track_id, self.next_track_id + count, dtype=np.int64)
+        self.next_track_id += count
+        self.bank.append(
+            self.filter.initiate(x, P), t=plots.time, track_id=ids, status=TENTATIVE, hit_bits=1, n_events=1,
+            n_updates=1, n_misses=0, created=plots.time, alt_m=plots.mode_c_m, z_hint=position[:, 2],
+            mode3a=plots.mode3a, icao24=plots.mode_s, iff=plots.iff,
+        )
+        self.stats["tracks_started"] += count
