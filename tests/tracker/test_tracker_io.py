@@ -165,7 +165,9 @@ def test_streaming_random_chunks_equals_run(sim, radar1, seed):
     cuts = np.sort(split_rng.choice(np.arange(1, len(plots)), size=n_cuts, replace=False))
     streamed = feed_in_chunks(sensors, plots, cuts)
     assert len(reference) > 100
-    pd.testing.assert_frame_equal(streamed, reference, check_exact=True)
+    # plots are converted per chunk and lat/lon per drain, vectorised over arrays whose length
+    # depends on the chunking: the same operations, rounded alike to 1e-12
+    pd.testing.assert_frame_equal(streamed, reference, check_exact=False, rtol=1e-12, atol=1e-9)
 
 
 def test_drain_returns_rows_once(sim, radar1, targets):
@@ -197,7 +199,9 @@ def test_streaming_two_radars_one_plot_at_a_time_equals_run(sim, radar1, radar2)
     reference = Tracker(sensors, config).run(plots)
     assert reference["track_id"].nunique() == 3
     streamed = feed_in_chunks(sensors, plots, np.arange(1, len(plots)), config)
-    pd.testing.assert_frame_equal(streamed, reference, check_exact=True)
+    # plots are converted per chunk and lat/lon per drain, vectorised over arrays whose length
+    # depends on the chunking: the same operations, rounded alike to 1e-12
+    pd.testing.assert_frame_equal(streamed, reference, check_exact=False, rtol=1e-12, atol=1e-9)
 
 
 # ----------------------------------------------------------------------------- several radars, beam phase

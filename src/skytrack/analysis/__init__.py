@@ -1,5 +1,5 @@
-"""skytrack.analysis: metrics against truth, the evaluation of tracker output, report figures
-and the studies of the papers.
+"""skytrack.analysis: metrics against truth, the evaluation of tracker output and report figures
+(the studies of the papers live in :mod:`skytrack.studies`).
 
 * :mod:`~skytrack.analysis.metrics` — OSPA, GOSPA (with its decomposition), RMSE, NEES;
 * :mod:`~skytrack.analysis.evaluate` — :func:`evaluate` tracks against truth (``skytrack evaluate``);

@@ -1,6 +1,6 @@
 """``skytrack study`` sub-commands; here ``singer-missed``, the accuracy study of spec 000 §6 (R15).
 
-The command only parses options, calls :mod:`skytrack.analysis.singer_missed` and prints:
+The command only parses options, calls :mod:`skytrack.studies.singer_missed` and prints:
 the FS11/FES11 table (E1/E2/E4), the E3 Kalman check at P_D = 1 (a failure exits with
 code 1), the E6 minimal-P_D read-off for ``--require-fs11``, and with ``--monte-carlo``
 the E5 consistency table (simulated with :mod:`skytrack.sim.singer_truth`, rich progress bar).
@@ -78,7 +78,7 @@ def singer_missed(
     require_fes11: float | None = typer.Option(None, "--require-fes11", help="E6: the same for FES11"),
 ) -> None:
     """Singer filtering / one-scan extrapolation accuracy with missed detections (spec 000 §6)."""
-    from skytrack.analysis import singer_missed as study  # the library is imported here: --help stays light
+    from skytrack.studies import singer_missed as study  # the library is imported here: --help stays light
 
     console = Console()
     try:
@@ -138,7 +138,7 @@ def singer_missed(
 
 def _run_monte_carlo(console: Console, config, mc_runs: int, out: Path) -> bool:
     """E5 with a progress bar; returns True if a checked ratio is outside 1 ± MC_BAND."""
-    from skytrack.analysis import singer_missed as study
+    from skytrack.studies import singer_missed as study
     from skytrack.sim.singer_truth import simulate_singer_1d
 
     columns = (TextColumn("Monte Carlo"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())

@@ -33,36 +33,44 @@ from skytrack.core import linalg
 
 
 # ---------------------------------------------------------------------------- states
+def _names(cls) -> tuple[str, ...]:
+    names = cls.__dict__.get("_field_names")
+    if names is None:
+        names = tuple(f.name for f in dataclasses.fields(cls))
+        cls._field_names = names
+    return names
+
+
 @dataclass
 class ArrayState:
     """Base of every filter state: dataclass fields that are arrays with rows first."""
 
     def __len__(self) -> int:
-        return len(getattr(self, dataclasses.fields(self)[0].name))
+        return len(getattr(self, _names(type(self))[0]))
 
     def take(self, rows) -> "ArrayState":
         """The given rows (index array or boolean mask) as a new state."""
-        return type(self)(**{f.name: getattr(self, f.name)[rows] for f in dataclasses.fields(self)})
+        return type(self)(*[getattr(self, name)[rows] for name in _names(type(self))])
 
     def put(self, rows, other: "ArrayState") -> None:
         """Overwrite the given rows with ``other``'s rows (in place)."""
-        for f in dataclasses.fields(self):
-            getattr(self, f.name)[rows] = getattr(other, f.name)
+        for name in _names(type(self)):
+            getattr(self, name)[rows] = getattr(other, name)
 
     @classmethod
     def concat(cls, parts: list["ArrayState"]) -> "ArrayState":
-        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(cls)})
+        return cls(*[np.concatenate([getattr(p, name) for p in parts]) for name in _names(cls)])
 
     def copy(self) -> "ArrayState":
-        return type(self)(**{f.name: getattr(self, f.name).copy() for f in dataclasses.fields(self)})
+        return type(self)(*[getattr(self, name).copy() for name in _names(type(self))])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """Plain arrays by field name (``np.savez`` them to checkpoint a bank)."""
-        return {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        """Copies of the arrays by field name (``np.savez`` them to checkpoint a bank)."""
+        return {name: np.array(getattr(self, name)) for name in _names(type(self))}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> "ArrayState":
-        names = [f.name for f in dataclasses.fields(cls)]
+        names = _names(cls)
         missing = [n for n in names if n not in arrays]
         if missing:
             raise ValueError(f"{cls.__name__}: saved arrays lack {missing}")

@@ -56,6 +56,8 @@ class RowChecks:
     def __init__(self, source: TableSource, n_rows: int) -> None:
         self.source = source
         self.n_rows = n_rows
+        #: the epoch :func:`timestamps_to_seconds` chose when none was known (chunked reads reuse it)
+        self.inferred_epoch: pd.Timestamp | None = None
         self._problems: list[_Problem] = []
 
     def flag(self, mask_or_rows: np.ndarray, *, reason: str, column: str | None, describe: Describe) -> None:
@@ -428,6 +430,7 @@ def timestamps_to_seconds(
         report.warn(
             f"no epoch_utc known (sensors.json has none): time counts from the earliest {name} {epoch.isoformat()}"
         )
+        checks.inferred_epoch = epoch
     if stamps is None:
         return posix - (epoch - unix_zero) / pd.Timedelta(seconds=1)
     seconds = (offsets - (epoch - unix_zero).to_timedelta64()) / np.timedelta64(1, "s")

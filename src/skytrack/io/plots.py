@@ -16,6 +16,8 @@ or since the earliest timestamp with a warning when no epoch is known.  The
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, overload
 
@@ -40,7 +42,33 @@ from skytrack.io.checks import (
 )
 from skytrack.io.errors import ReadReport
 from skytrack.io.schema import PLOT_SCHEMA
-from skytrack.io.tables import TableSource, iter_parquet, load_table, table_format, write_table
+from skytrack.io.tables import TableSource, iter_csv, iter_parquet, load_table, table_format, write_table
+
+
+@dataclass
+class _PlotStream:
+    """What the checks of one chunk pass on to the next, so that a file read in chunks is
+    checked like a whole file: the epoch inferred from the first chunk with timestamps,
+    the latest time of every sensor (time order across chunks), and the value ranges
+    behind the unit warnings (given once, for the whole file)."""
+
+    epoch: pd.Timestamp | None = None
+    last_time: dict[str, float] = field(default_factory=dict)
+    rows: int = 0
+    largest_range: float = -math.inf
+    largest_azimuth: float = -math.inf
+
+    def add_units(self, range_m: np.ndarray, azimuth: np.ndarray) -> None:
+        self.rows += len(range_m)
+        self.largest_range = max(self.largest_range, float(np.nanmax(np.asarray(range_m, dtype=float), initial=-np.inf)))
+        self.largest_azimuth = max(self.largest_azimuth, float(np.nanmax(np.asarray(azimuth, dtype=float), initial=-np.inf)))
+
+    def add_times(self, plots: pd.DataFrame) -> None:
+        if len(plots) == 0:
+            return
+        latest = pd.Series(plots["time"].to_numpy()).groupby(plots["sensor"].to_numpy(dtype=object)).max()
+        for sensor, time in latest.items():
+            self.last_time[str(sensor)] = max(float(time), self.last_time.get(str(sensor), -math.inf))
 
 
 def _validate_plots(
@@ -50,13 +78,19 @@ def _validate_plots(
     epoch_utc: object,
     lenient: bool,
     report: ReadReport,
+    stream: _PlotStream | None = None,
 ) -> pd.DataFrame:
+    """Check and coerce one table of plots; ``stream`` carries state from earlier chunks of the file."""
     require_columns(df, source, [("time", "timestamp"), "sensor", "range_m", "azimuth_deg"], "plots")
     df = df.copy(deep=False)
     checks = RowChecks(source, len(df))
     epoch_text = epoch_utc if epoch_utc is not None else (sensors.epoch_utc if sensors is not None else None)
     epoch = parse_epoch(epoch_text) if epoch_text is not None else None
+    if epoch is None and stream is not None:
+        epoch = stream.epoch
     time = time_column(df, checks, epoch, report)
+    if stream is not None and checks.inferred_epoch is not None:
+        stream.epoch = checks.inferred_epoch
 
     sensor = as_string(df, "sensor", checks, required=True)
     if sensors is not None:
@@ -90,17 +124,59 @@ def _validate_plots(
         as_string(df, "truth_id", checks, required=False)
 
     codes, names = pd.factorize(sensor, use_na_sentinel=True)
+    codes = np.asarray(codes)
+    group_names = [repr(str(n)) for n in names]
+    if stream is not None:
+        _flag_behind_earlier_chunks(checks, time, codes, names, group_names, stream.last_time)
     flag_time_backwards(
         checks,
         time,
-        np.asarray(codes),
-        [repr(str(n)) for n in names],
+        codes,
+        group_names,
         strict_increase=False,
         group_label="sensor",
     )
-    _warn_implausible_units(range_m, azimuth, report)
-    df = checks.finish(df, lenient=lenient, report=report)
-    return order_columns(df, PLOT_SCHEMA)
+    if stream is None:
+        _warn_implausible_units(range_m, azimuth, report)
+    else:
+        stream.add_units(range_m, azimuth)
+    df = order_columns(checks.finish(df, lenient=lenient, report=report), PLOT_SCHEMA)
+    if stream is not None:
+        stream.add_times(df)
+    return df
+
+
+def _flag_behind_earlier_chunks(
+    checks: RowChecks, time: np.ndarray, codes: np.ndarray, names, group_names: list[str], last_time: dict[str, float]
+) -> None:
+    """Flag rows earlier than the latest time of their sensor in the earlier chunks.
+
+    Together with :func:`flag_time_backwards` inside the chunk this flags exactly the rows
+    a whole-file read flags, with the same message (the time compared with is the larger
+    of the earlier chunks' latest and the running maximum inside the chunk).  Call it just
+    before :func:`flag_time_backwards`: the rows it flags are then not flagged twice.
+    """
+    if not last_time:
+        return
+    carry_of_code = np.array([last_time.get(str(n), -np.inf) for n in names], dtype=float)
+    grouped = codes >= 0
+    carry = np.full(len(time), -np.inf)
+    carry[grouped] = carry_of_code[codes[grouped]]
+    eligible = grouped & ~checks.bad_rows() & np.isfinite(time)
+    bad = eligible & (time < carry)
+    if not bad.any():
+        return
+
+    def describe(row: int) -> str:
+        before = eligible & (codes == codes[row])
+        before[row:] = False
+        earlier = max(carry[row], float(np.max(time[before], initial=-np.inf)))
+        return (
+            f"time {fmt_value(time[row])} is earlier than time {fmt_value(earlier)} "
+            f"of an earlier row of sensor {group_names[codes[row]]}"
+        )
+
+    checks.flag(bad, reason="time goes backwards within a sensor", column="time", describe=describe)
 
 
 #: a table needs this many rows before its value ranges say anything about units
@@ -109,14 +185,20 @@ _UNIT_CHECK_MIN_ROWS = 50
 
 def _warn_implausible_units(range_m: np.ndarray, azimuth: np.ndarray, report: ReadReport) -> None:
     """Warn when the values look like another unit than the column name says."""
-    if len(range_m) < _UNIT_CHECK_MIN_ROWS:
+    whole = _PlotStream()
+    whole.add_units(range_m, azimuth)
+    _warn_units(whole, report)
+
+
+def _warn_units(seen: _PlotStream, report: ReadReport) -> None:
+    if seen.rows < _UNIT_CHECK_MIN_ROWS:
         return
-    largest_range = np.nanmax(np.asarray(range_m, dtype=float), initial=-np.inf)
-    if 0 < largest_range < 1000.0:
-        report.warn(f"range_m never exceeds {largest_range:g}: are the ranges in kilometres instead of metres?")
-    largest_azimuth = np.nanmax(np.asarray(azimuth, dtype=float), initial=-np.inf)
-    if 0 < largest_azimuth <= 2 * np.pi:
-        report.warn(f"azimuth_deg never exceeds {largest_azimuth:g}: are the azimuths in radians instead of degrees?")
+    if 0 < seen.largest_range < 1000.0:
+        report.warn(f"range_m never exceeds {seen.largest_range:g}: are the ranges in kilometres instead of metres?")
+    if 0 < seen.largest_azimuth <= 2 * np.pi:
+        report.warn(
+            f"azimuth_deg never exceeds {seen.largest_azimuth:g}: are the azimuths in radians instead of degrees?"
+        )
 
 
 @overload
@@ -147,31 +229,35 @@ def read_plots(path, sensors=None, lenient=False, *, epoch_utc=None):
 def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None, report=None):
     """Read and validate a plots table chunk by chunk; yields DataFrames of at most ``chunk_rows``.
 
-    Parquet files are streamed (memory bounded by the chunk); CSV files are read whole and
-    then handed out in chunks.  Errors name rows of the whole file.  In lenient mode pass a
-    :class:`ReadReport` as ``report``: skips of every chunk are added to it.  Time order is
-    checked within chunks here; across chunk boundaries the tracker checks it.
+    Parquet and CSV files are both streamed: memory is bounded by the chunk, never the
+    file.  The chunks are checked as the whole file would be: errors name rows (and CSV
+    lines) of the whole file, time must not go backwards within a sensor across chunks
+    either, the unit warnings look at the whole file, and when timestamps come without
+    an epoch, time counts from the earliest timestamp of the first chunk that has one.
+    In lenient mode pass a :class:`ReadReport` as ``report``: the skips of every chunk are
+    added to it (counts as for a whole-file read).  Chunks left empty by a lenient read
+    are not yielded.  Strict mode raises at the first bad chunk, so the error's count of
+    further bad rows covers the rows read so far (malformed CSV lines are counted in the
+    whole file).
     """
+    if chunk_rows < 1:
+        raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
     report = report if report is not None else ReadReport(file=str(path))
     if table_format(path) == "parquet":
-        kept = 0
-        for frame, source in iter_parquet(path, chunk_rows):
-            report.rows_read += len(frame)
-            plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report)
-            kept += len(plots)
-            report.rows_kept = kept  # the validator sets the count of its own chunk
-            yield plots
+        chunks = iter_parquet(path, chunk_rows)
     else:
-        plots = read_plots(path, sensors, lenient, epoch_utc=epoch_utc)
-        if lenient:
-            plots, whole = plots
-            report.rows_read += whole.rows_read
-            report.rows_kept += whole.rows_kept
-            report.skipped.update(whole.skipped)
-            report.warnings.extend(whole.warnings)
-        for start in range(0, len(plots), chunk_rows):
-            yield plots.iloc[start : start + chunk_rows]
-        return
+        chunks = iter_csv(path, chunk_rows, lenient=lenient, report=report)
+    stream = _PlotStream()
+    kept = 0
+    for frame, source in chunks:
+        report.rows_read += len(frame)
+        plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report, stream)
+        kept += len(plots)
+        report.rows_kept = kept  # the validator sets the count of its own chunk
+        report.warnings[:] = dict.fromkeys(report.warnings)  # each chunk repeats conversions' warnings
+        if len(plots):
+            yield plots
+    _warn_units(stream, report)
     emit_warnings(report, lenient)
 
 

@@ -7,7 +7,14 @@ inferred (numbers, timestamps, booleans) and the table readers coerce them.
 
 CSV row/line numbering: row ``r`` is the 0-based data row (blank lines and malformed
 lines are not data rows); its line is the 1-based physical line where the row starts,
-found by re-scanning the file only when an error message needs it.
+found by scanning the file only when an error message needs it (one resumable scan per
+file, shared by the chunks of a streamed read).
+
+Streaming: :func:`iter_parquet` and :func:`iter_csv` hand a file out in chunks of at most
+``chunk_rows`` rows, so memory is bounded by the chunk size.  :func:`iter_csv` reads with
+``pyarrow.csv.open_csv`` and infers the column types per chunk the way
+``pyarrow.csv.read_csv`` infers them for a whole file (see :func:`_infer_csv_column`),
+so a chunk reads like a small file would.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from typing import Iterator, Sequence
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 
@@ -35,6 +43,8 @@ CSV_SUFFIXES = (".csv", ".csv.gz")
 CSV_NULL_TOKENS = ["", "NA", "N/A", "NaN", "nan", "null", "NULL", "None"]
 
 _SCAN_CHUNK = 1 << 24
+#: malformed CSV lines whose place a scan records (reports show the first few)
+_INVALID_LINES_KEPT = 10
 
 
 def table_format(path: str | Path) -> str:
@@ -75,6 +85,8 @@ class TableSource:
     _simple_layout: bool | None = field(default=None, repr=False)
     _scanned_lines: list[int] = field(default_factory=list, repr=False)
     _invalid_lines: list[tuple[int, int]] = field(default_factory=list, repr=False)
+    _invalid_overflow: bool = field(default=False, repr=False)
+    _scan_state: list | None = field(default=None, repr=False)
 
     @classmethod
     def for_frame(cls, description: str) -> TableSource:
@@ -82,6 +94,7 @@ class TableSource:
         return cls(display=description)
 
     def error(self, message: str, *, row: int | None = None, column: str | None = None, more: int = 0) -> InputError:
+        """An error at ``row`` of this DataFrame (numbered in the whole file in the message)."""
         line = self.lines([row])[0] if row is not None else None
         row = None if row is None else row + self.row_offset
         return InputError(message, file=self.display, row=row, line=line, column=column, more=more)
@@ -95,14 +108,18 @@ class TableSource:
 
     # -- CSV line numbers -------------------------------------------------------------
     def lines(self, rows: Sequence[int | None]) -> list[int | None]:
-        """1-based file lines of 0-based data rows (``None`` for non-CSV sources)."""
+        """1-based file lines of 0-based data rows of this DataFrame (``None`` for non-CSV sources).
+
+        Rows are counted from the DataFrame's first row, which is row ``row_offset`` of the file.
+        """
         if not self.is_csv or self.path is None:
             return [None] * len(rows)
+        rows = [None if r is None else int(r) + self.row_offset for r in rows]
         wanted = [r for r in rows if r is not None]
         if not wanted:
             return [None] * len(rows)
         if self._is_simple_layout():
-            return [None if r is None else int(r) + 2 for r in rows]
+            return [None if r is None else r + 2 for r in rows]
         self._scan(max_row=max(wanted))
         return [None if r is None else self._scanned_lines[r] for r in rows]
 
@@ -113,9 +130,15 @@ class TableSource:
         return self._invalid_lines[:limit]
 
     def _is_simple_layout(self) -> bool:
-        """True when data row r is on line r + 2: no quotes, blank or malformed lines."""
+        """True when data row r is on line r + 2: no quotes, blank or malformed lines.
+
+        ``_simple_layout`` caches the byte scan (quotes, blank lines); malformed lines are
+        counted while the file is read, so a streamed read re-checks their count each time.
+        """
+        if self.n_invalid_lines:
+            return False
         if self._simple_layout is None:
-            simple = self.n_invalid_lines == 0
+            simple = True
             previous = b""
             with _open_binary(self.path) as stream:
                 first = True
@@ -143,25 +166,39 @@ class TableSource:
                 last_line = reader.line_num
 
     def _scan(self, max_row: int | None, invalid_limit: int = 0) -> None:
-        if max_row is not None and len(self._scanned_lines) > max_row:
+        """Scan on, resuming where the last scan stopped, until row ``max_row`` (``None``: no
+        row wanted) and the first ``invalid_limit`` malformed lines are located."""
+        keep_invalid = max(invalid_limit, _INVALID_LINES_KEPT)
+        if self._invalid_overflow and invalid_limit > len(self._invalid_lines):
+            self._scan_state = None  # the wanted malformed lines were passed unrecorded: start over
+        if self._scan_state is None:
+            self._scanned_lines.clear()
+            self._invalid_lines.clear()
+            self._invalid_overflow = False
+            self._scan_state = [self._records(), False]  # [record iterator, header seen]
+        records, header_seen = self._scan_state
+
+        def done() -> bool:
+            done_rows = max_row is None or len(self._scanned_lines) > max_row
+            done_invalid = len(self._invalid_lines) >= min(invalid_limit, self.n_invalid_lines)
+            return done_rows and done_invalid
+
+        if done():
             return
-        self._scanned_lines.clear()
-        self._invalid_lines.clear()
-        header_seen = False
-        for start, record in self._records():
+        for start, record in records:
             if not record:
                 continue
             if not header_seen:
-                header_seen = True
+                header_seen = self._scan_state[1] = True
                 continue
             if len(record) != self.n_fields:
-                if len(self._invalid_lines) < max(invalid_limit, 10):
+                if len(self._invalid_lines) < keep_invalid:
                     self._invalid_lines.append((start, len(record)))
+                else:
+                    self._invalid_overflow = True
                 continue
             self._scanned_lines.append(start)
-            done_rows = max_row is None or len(self._scanned_lines) > max_row
-            done_invalid = len(self._invalid_lines) >= min(invalid_limit, self.n_invalid_lines)
-            if done_rows and done_invalid:
+            if done():
                 return
 
 
@@ -261,6 +298,173 @@ def _read_csv(path: Path, text_columns: frozenset[str], source: TableSource) -> 
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"cannot read as CSV ({reason})", file=str(path)) from None
     return table.to_pandas(types_mapper=_string_mapper)
+
+
+# -- streamed CSV ---------------------------------------------------------------------
+
+#: the block size of the streaming CSV reader stays within these bounds (bytes); a block
+#: must hold at least one whole line
+_MIN_BLOCK_BYTES = 1 << 20
+_MAX_BLOCK_BYTES = 1 << 30
+_TRUE_VALUES = pa.array(["1", "True", "TRUE", "true"])
+_BOOL_VALUES = pa.array(["1", "True", "TRUE", "true", "0", "False", "FALSE", "false"])
+#: the types pyarrow's CSV reader tries, in its order (time32 has no cast from text)
+_INFERRED_TYPES = (
+    pa.int64(), pa.bool_(), pa.date32(), pa.timestamp("s"), pa.timestamp("ns"),
+    pa.timestamp("s", "UTC"), pa.timestamp("ns", "UTC"), pa.float64(),
+)
+
+
+def _infer_csv_column(column: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
+    """Type a text column as ``pyarrow.csv.read_csv`` would have inferred it.
+
+    Nulls were already recognised by the reader (``CSV_NULL_TOKENS``).  The first type of
+    :data:`_INFERRED_TYPES` that every non-null value converts to wins, else text stays;
+    numbers may be surrounded by spaces or tabs, as the CSV reader allows.
+    """
+    if column.null_count == len(column):
+        return pa.nulls(len(column))
+    trimmed = None
+    for target in _INFERRED_TYPES:
+        if pa.types.is_boolean(target):
+            if pc.all(pc.is_in(column, value_set=_BOOL_VALUES), skip_nulls=True).as_py():
+                is_true = pc.is_in(column, value_set=_TRUE_VALUES)
+                return pc.if_else(pc.is_valid(column), is_true, pa.scalar(None, pa.bool_()))
+            continue
+        values = column
+        if pa.types.is_integer(target) or pa.types.is_floating(target):
+            trimmed = trimmed if trimmed is not None else pc.utf8_trim(column, characters=" \t")
+            values = trimmed
+        try:
+            return pc.cast(values, target)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            continue
+    return column
+
+
+def _typed_chunk(table: pa.Table, text_columns: frozenset[str]) -> pa.Table:
+    columns = [
+        column if name in text_columns else _infer_csv_column(column)
+        for name, column in zip(table.column_names, table.columns)
+    ]
+    return pa.Table.from_arrays(columns, names=table.column_names)
+
+
+def _csv_block_bytes(path: Path, chunk_rows: int) -> int:
+    """A reader block of about ``chunk_rows`` lines, from the line length at the top of the file."""
+    with _open_binary(path) as stream:
+        sample = stream.read(1 << 16)
+    line_bytes = max(len(sample) / max(sample.count(b"\n"), 1), 1.0)
+    return int(min(max(chunk_rows * line_bytes, _MIN_BLOCK_BYTES), _MAX_BLOCK_BYTES))
+
+
+def iter_csv(
+    path: str | Path,
+    chunk_rows: int,
+    *,
+    text_columns: frozenset[str] = TEXT_COLUMNS,
+    lenient: bool = False,
+    report: ReadReport | None = None,
+    block_bytes: int | None = None,
+) -> Iterator[tuple[pd.DataFrame, TableSource]]:
+    """Stream a CSV file (.csv/.csv.gz) in DataFrames of ``chunk_rows`` rows (the last may be shorter).
+
+    Memory is bounded by a chunk plus one reader block (``block_bytes``, by default about
+    ``chunk_rows`` lines).  Every chunk comes with the same :class:`TableSource`, whose
+    ``row_offset`` is set to the chunk's first row, so error messages name rows and lines
+    of the whole file; validate a chunk before asking for the next one.  Column types are
+    inferred per chunk as :func:`pyarrow.csv.read_csv` infers them for a whole file.
+
+    Malformed lines (wrong number of fields) raise :class:`InputError` in strict mode
+    (with the count of the whole file); in lenient mode they are skipped and counted in
+    ``report`` once the file is read (in ``skipped`` and ``rows_read``; the caller adds
+    the data rows it reads to ``rows_read``, as for Parquet).  A file with a header and
+    no data rows gives one empty chunk, so its columns can still be checked.
+    """
+    path = Path(path)
+    if chunk_rows < 1:
+        raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
+    _check_exists(path)
+    header = _csv_header(path)
+    source = TableSource(display=str(path), path=path, is_csv=True, n_fields=len(header))
+
+    def count_invalid(_row: pcsv.InvalidRow) -> str:
+        source.n_invalid_lines += 1
+        return "skip"
+
+    # every column is read as text and typed per chunk: the stream can never meet a value
+    # that the types guessed from its first block cannot hold
+    convert = pcsv.ConvertOptions(
+        column_types={name: pa.string() for name in header},
+        null_values=CSV_NULL_TOKENS,
+        strings_can_be_null=True,
+        quoted_strings_can_be_null=False,
+    )
+    # quoted values may hold line breaks; the reader's blocks must not cut them (a whole
+    # read of a small file never cuts, a streamed one does)
+    parse = pcsv.ParseOptions(invalid_row_handler=count_invalid, newlines_in_values=True)
+    read = pcsv.ReadOptions(block_size=block_bytes or _csv_block_bytes(path, chunk_rows))
+    strict = not lenient or report is None
+
+    def malformed_error() -> InputError:
+        line, n = source.invalid_lines(limit=1)[0]
+        return InputError(
+            f"expected {source.n_fields} fields (as in the header), found {n}", file=source.display, line=line,
+            more=source.n_invalid_lines - 1,
+        )
+
+    def chunk(table: pa.Table, offset: int) -> tuple[pd.DataFrame, TableSource]:
+        frame = _typed_chunk(table, text_columns).to_pandas(types_mapper=_string_mapper)
+        source.row_offset = offset
+        _check_unique_columns(frame, source)
+        return frame, source
+
+    offset = 0
+    pending: list[pa.RecordBatch] = []
+    pending_rows = 0
+    reader = None
+    try:
+        reader = pcsv.open_csv(path, read_options=read, parse_options=parse, convert_options=convert)
+        schema = reader.schema
+        while True:
+            try:
+                batch = reader.read_next_batch()
+            except StopIteration:
+                break
+            if strict and source.n_invalid_lines:
+                for _ in reader:  # count the malformed lines of the whole file for the message
+                    pass
+                raise malformed_error()
+            if batch.num_rows:
+                pending.append(batch)
+                pending_rows += batch.num_rows
+            while pending_rows >= chunk_rows:
+                table = pa.Table.from_batches(pending, schema=schema)
+                yield chunk(table.slice(0, chunk_rows), offset)
+                offset += chunk_rows
+                rest = table.slice(chunk_rows)
+                pending, pending_rows = rest.to_batches(), rest.num_rows
+    except (pa.ArrowException, OSError) as exc:
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read as CSV ({reason})", file=str(path)) from None
+    finally:
+        if reader is not None:
+            reader.close()
+    if strict and source.n_invalid_lines:
+        raise malformed_error()
+    if pending_rows or offset == 0:
+        table = pa.Table.from_batches(pending, schema=schema) if pending else schema.empty_table()
+        yield chunk(table, offset)
+    if source.n_invalid_lines and report is not None:
+        issues = [
+            InputError(f"expected {source.n_fields} fields (as in the header), found {n}", file=source.display, line=line)
+            for line, n in source.invalid_lines(limit=3)
+        ]
+        report.add_skipped("wrong number of fields", source.n_invalid_lines, issues)
+        # a whole-file read lists them first: they are found before any row is checked
+        reason = "wrong number of fields"
+        report.skipped = {reason: report.skipped[reason], **{k: v for k, v in report.skipped.items() if k != reason}}
+        report.rows_read += source.n_invalid_lines
 
 
 def _check_unique_columns(df: pd.DataFrame, source: TableSource) -> None:

@@ -43,6 +43,19 @@ class ConvertedPlots:
     covariance: np.ndarray
     consistent: np.ndarray
 
+    def take(self, rows) -> "ConvertedPlots":
+        return ConvertedPlots(self.position[rows], self.covariance[rows], self.consistent[rows])
+
+    @staticmethod
+    def concat(parts: list["ConvertedPlots"]) -> "ConvertedPlots":
+        return ConvertedPlots(np.concatenate([p.position for p in parts]),
+                              np.concatenate([p.covariance for p in parts]),
+                              np.concatenate([p.consistent for p in parts]))
+
+    @staticmethod
+    def empty() -> "ConvertedPlots":
+        return ConvertedPlots(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0, dtype=bool))
+
 
 def sensor_positions(sensor: Sensor, platform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sensor position and velocity per plot ``[K, 3]`` (platform columns for a moving sensor)."""

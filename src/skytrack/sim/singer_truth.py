@@ -13,11 +13,14 @@ scans):
   NaN where the scan is missed, so a missed value cannot be used by accident.
 
 Scan 0 is the initial report (always present); scans 1..N follow.  Same generator state
-=> identical output.
+=> identical output.  ``rng`` is one generator for the whole batch, or one generator per
+run: then run r draws only from ``rng[r]``, so its trajectory does not depend on the other
+runs of the batch (Monte Carlo studies seed run r with ``SeedSequence(seed).spawn(runs)[r]``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +65,7 @@ def simulate_singer_1d(
     runs: int,
     sigma: float,
     p_detection: float,
-    rng: np.random.Generator,
+    rng: np.random.Generator | Sequence[np.random.Generator],
     measurement: str = "pos",
     sigma_v: float | None = None,
     m0=None,
@@ -72,12 +75,19 @@ def simulate_singer_1d(
 
     ``m0``/``P0`` give the law of the initial state (default: zero mean, position and velocity
     st. dev. 0 and the stationary acceleration variance sigma_a^2), so that a filter started
-    from (m0, P0) has the correct prior.
+    from (m0, P0) has the correct prior.  ``rng``: one generator for all runs, or a sequence
+    of ``runs`` generators, one per run (run r's noise and detections come from ``rng[r]`` only).
     """
     if not isinstance(model, SingerAxisModel):
         raise TypeError(f"model must be a SingerAxisModel, got {type(model).__name__}")
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError("rng must be a numpy.random.Generator (simulations take an explicit generator)")
+    per_run = not isinstance(rng, np.random.Generator)
+    if per_run and not (
+        isinstance(rng, Sequence) and len(rng) > 0 and all(isinstance(g, np.random.Generator) for g in rng)
+    ):
+        raise TypeError(
+            "rng must be a numpy.random.Generator or a sequence of them, one per run "
+            "(simulations take an explicit generator)"
+        )
     if measurement not in MEASUREMENT_INDEX:
         raise ValueError(f"measurement must be one of {tuple(MEASUREMENT_INDEX)}, got {measurement!r}")
     if not (np.isfinite(dt) and dt > 0):
@@ -86,6 +96,8 @@ def simulate_singer_1d(
         raise ValueError(f"n_scans must be a positive integer, got {n_scans!r}")
     if int(runs) != runs or runs < 1:
         raise ValueError(f"runs must be a positive integer, got {runs!r}")
+    if per_run and len(rng) != runs:
+        raise ValueError(f"rng has {len(rng)} generators for {runs} runs; give one per run")
     if not (np.isfinite(sigma) and sigma > 0):
         raise ValueError(f"sigma must be finite and > 0, got {sigma!r}")
     if not (0.0 <= p_detection <= 1.0):
@@ -102,14 +114,29 @@ def simulate_singer_1d(
     L0 = _symmetric_sqrt(P0, "P0")
     LQ = _symmetric_sqrt(Q, "Q")
 
-    # scan-major storage (one contiguous [runs, 3] slab per scan); returned as [runs, scan, ...] views
+    # scan-major storage (one contiguous [runs, 3] slab per scan); returned as [runs, scan, ...] views.
+    # The standard normals of the truth are drawn into ``truth`` first and transformed in place.
+    k = len(idx)
     truth = np.empty((n_scans + 1, runs, 3))
-    truth[0] = m0 + rng.standard_normal((runs, 3)) @ L0.T
+    noise = np.empty((n_scans + 1, runs, k))
+    uniforms = np.empty((n_scans + 1, runs))
+    if per_run:
+        for r, g in enumerate(rng):
+            truth[0, r] = g.standard_normal(3)
+            truth[1:, r] = g.standard_normal((n_scans, 3))
+            noise[:, r] = g.standard_normal((n_scans + 1, k))
+            uniforms[:, r] = g.random(n_scans + 1)
+    else:  # one stream, in this order: initial states, process noise scan by scan, measurement noise, detections
+        truth[0] = rng.standard_normal((runs, 3))
+        truth[1:] = rng.standard_normal((n_scans, runs, 3))
+        noise[:] = rng.standard_normal((n_scans + 1, runs, k))
+        uniforms[:] = rng.random((n_scans + 1, runs))
+    truth[0] = m0 + truth[0] @ L0.T
     for n in range(n_scans):
-        truth[n + 1] = truth[n] @ F.T + rng.standard_normal((runs, 3)) @ LQ.T
-    noise_sd = np.array([sigma, sigma_v][: len(idx)], dtype=float)
-    measurements = truth[:, :, idx] + rng.standard_normal((n_scans + 1, runs, len(idx))) * noise_sd
-    detected = rng.random((n_scans + 1, runs)) < p_detection
+        truth[n + 1] = truth[n] @ F.T + truth[n + 1] @ LQ.T
+    noise_sd = np.array([sigma, sigma_v][:k], dtype=float)
+    measurements = truth[:, :, idx] + noise * noise_sd
+    detected = uniforms < p_detection
     detected[0] = True
     measurements[~detected] = np.nan
     truth, measurements, detected = truth.transpose(1, 0, 2), measurements.transpose(1, 0, 2), detected.T

@@ -2,7 +2,8 @@
 
 Confirmed tracks are reported at output instants — the end of every scan of the first
 radar, or every ``output_interval_s`` — predicted to the instant.  Rows are kept as column
-arrays per instant; one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`.
+arrays per instant; one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`,
+with one geodetic conversion for all its rows.
 2-D tracks carry ``z`` null and their last Mode C altitude as ``alt_m``; lat/lon come from
 the ENU position (at the last plot's height for 2-D tracks).
 """
@@ -64,6 +65,20 @@ class OutputClock:
             self.next += self.step
 
 
+#: working column: the ENU z used for lat/lon (dropped by finish_rows)
+GEODETIC_Z = "_z_geodetic"
+
+
+def finish_rows(columns: dict[str, np.ndarray], origin, dim: int) -> dict[str, np.ndarray]:
+    """Fill lat, lon (and alt_m in 3-D) of concatenated track rows; drops the working column."""
+    z = columns.pop(GEODETIC_Z)
+    lat, lon, alt = enu_to_geodetic(columns["x"], columns["y"], z, origin.lat, origin.lon, origin.alt_m)
+    columns["lat"], columns["lon"] = lat, lon
+    if dim == 3:
+        columns["alt_m"] = alt
+    return columns
+
+
 def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank, dim: int,
                order: int, origin, full_covariance: bool) -> dict[str, np.ndarray]:
     """The tracks-table columns of ``rows`` of ``bank`` with states ``x``, ``P`` at ``instant``."""
@@ -80,10 +95,9 @@ def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, b
         columns[f"var_{name}"] = P[:, pos[axis], pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
         columns[f"var_{name}"] = P[:, vel[axis], vel[axis]] if axis < dim else nan
-    z_for_geodetic = x[:, pos[2]] if dim == 3 else np.nan_to_num(bank.z_hint[rows])
-    lat, lon, alt = enu_to_geodetic(x[:, pos[0]], x[:, pos[1]], z_for_geodetic, origin.lat, origin.lon, origin.alt_m)
-    columns["lat"], columns["lon"] = lat, lon
-    columns["alt_m"] = alt if dim == 3 else bank.alt_m[rows]
+    # lat/lon are filled by finish_rows, once per drain: one geodetic conversion, not one per instant
+    columns["lat"] = columns["lon"] = nan
+    columns["alt_m"] = nan if dim == 3 else bank.alt_m[rows]
     columns["status"] = np.where(bank.n_misses[rows] > 0, "coasting", "confirmed")
     columns["n_updates"] = bank.n_updates[rows]
     columns["n_misses"] = bank.n_misses[rows]
@@ -92,6 +106,7 @@ def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, b
     columns["callsign"] = np.full(count, None, dtype=object)
     columns["iff"] = decode_iff(bank.iff[rows])
     columns["model_probs"] = np.full(count, None, dtype=object)
+    columns[GEODETIC_Z] = x[:, pos[2]] if dim == 3 else np.nan_to_num(bank.z_hint[rows])
     if full_covariance:
         n = x.shape[1]
         iu, ju = np.triu_indices(n)

@@ -110,19 +110,28 @@ class ScanProcessor:
             for s in sensors.sensors
         ]
 
-    # ------------------------------------------------------------------ one window
-    def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch) -> None:
+    def convert(self, plots: PlotBatch) -> ConvertedPlots:
+        """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the default."""
         geometry = self.config.geometry
-        sensor = self.sensors.sensors[s]
-        bank = self.bank
         has_mode_c = np.isfinite(plots.mode_c_m)
         altitude = np.where(has_mode_c, plots.mode_c_m, geometry.default_altitude_m)
         altitude_sigma = np.where(has_mode_c, geometry.mode_c_sigma_m, geometry.default_altitude_sigma_m)
-        converted = convert_plots(sensor, plots.range_m, plots.azimuth, plots.elevation, altitude, altitude_sigma,
-                                  plots.platform)
-        inconsistent = ~converted.consistent
-        if inconsistent.any():
-            self.stats["plots_height_above_slant_range"] += int(inconsistent.sum())
+        converted = ConvertedPlots(np.empty((len(plots), 3)), np.empty((len(plots), 3, 3)),
+                                   np.empty(len(plots), dtype=bool))
+        for s in np.unique(plots.sensor):
+            rows = np.flatnonzero(plots.sensor == s)
+            part = convert_plots(self.sensors.sensors[s], plots.range_m[rows], plots.azimuth[rows],
+                                 plots.elevation[rows], altitude[rows], altitude_sigma[rows], plots.platform[rows])
+            converted.position[rows], converted.covariance[rows], converted.consistent[rows] = (
+                part.position, part.covariance, part.consistent)
+        inconsistent = int((~converted.consistent).sum())
+        if inconsistent:
+            self.stats["plots_height_above_slant_range"] += inconsistent
+        return converted
+
+    # ------------------------------------------------------------------ one window
+    def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
+        bank = self.bank
         n_tracks = len(bank)
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)

@@ -18,11 +18,12 @@ import pandas as pd
 from skytrack.core.plots import PlotBatch
 from skytrack.core.tracks import TRACK_OUTPUT_COLUMNS, empty_tracks
 from skytrack.geo.sensors import SensorSet
+from skytrack.models.conversion import ConvertedPlots
 from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.output import OutputClock, track_rows
+from skytrack.tracker.output import OutputClock, finish_rows, track_rows
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
 
@@ -69,6 +70,7 @@ class Tracker:
         self.sensor_is_3d = [s.is_3d for s in sensors.sensors]
         self.rows_fed = 0
         self.pending = PlotBatch.empty()
+        self.pending_converted = ConvertedPlots.empty()
         self.last_window_end = -np.inf
         # track rows per output instant, as column arrays; one DataFrame is built in drain()
         self.outputs: list[dict[str, np.ndarray]] = []
@@ -114,6 +116,7 @@ class Tracker:
         if len(chunk) == 0:
             return
         self.pending = PlotBatch.concat([self.pending, chunk])
+        self.pending_converted = ConvertedPlots.concat([self.pending_converted, self.scan.convert(chunk)])
         self.stats["plots"] += len(chunk)
         self._process_pending(final=False)
 
@@ -127,26 +130,28 @@ class Tracker:
         if not self.outputs:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         outputs, self.outputs = self.outputs, []
-        return pd.DataFrame({name: np.concatenate([o[name] for o in outputs]) for name in outputs[0]})
+        columns = {name: np.concatenate([o[name] for o in outputs]) for name in outputs[0]}
+        return pd.DataFrame(finish_rows(columns, self.sensors.origin, self.dim))
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
         rows = np.flatnonzero(self.bank.status == CONFIRMED) if confirmed_only else np.arange(len(self.bank))
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
-        return pd.DataFrame(self._rows_at(t, rows))
+        return pd.DataFrame(finish_rows(self._rows_at(t, rows), self.sensors.origin, self.dim))
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
-        pending = self.pending
+        pending, converted = self.pending, self.pending_converted
         for s, _, start, end, rows in self.schedule.complete_windows(pending, final):
             if self.clock.next is None:
                 self.clock.start(float(pending.time[rows].min()) if len(rows) else start, self.schedule.phase[self.output_sensor])
             self._emit_until(start)
             self.stats["windows"] += 1
-            self.scan.process(s, start, end, pending.take(rows))
+            self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
             self.last_window_end = max(self.last_window_end, end)
-        self.pending = pending.take(self.schedule.leftover())
+        leftover = self.schedule.leftover()
+        self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
 
     # ------------------------------------------------------------------ output
     def _emit_until(self, limit: float) -> None:
