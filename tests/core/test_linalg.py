@@ -121,8 +121,8 @@ def test_gaussian_loglik(rng, m):
     L = linalg.cholesky(S)
     nu = rng.standard_normal((30, m)) * 5.0
     got = linalg.gaussian_loglik(linalg.mahalanobis_chol(nu, L), linalg.logdet_chol(L), m)
-    direct = np.array([-0.5 * (nu[k] @ np.linalg.inv(S[k]) @ nu[k] + math.log(np.linalg.det(S[k])) + m * math.log(2 * math.pi))
-                       for k in range(30)])
+    direct = np.array([-0.5 * (nu[k] @ np.linalg.inv(S[k]) @ nu[k] + math.log(np.linalg.det(S[k]))
+                               + m * math.log(2 * math.pi)) for k in range(30)])
     assert rel(got, direct) < 1e-12
     scipy_value = np.array([stats.multivariate_normal(np.zeros(m), S[k]).logpdf(nu[k]) for k in range(30)])
     assert rel(got, scipy_value) < 1e-10

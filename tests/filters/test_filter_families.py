@@ -24,7 +24,8 @@ def gens(seed, runs):
 def quiet_rows(filt, rows, ndim=2):
     x = np.zeros((rows, 2 * ndim))
     x[:, 1] = 200.0
-    return filt.initiate(x, np.broadcast_to(np.diag(np.tile([100.0**2, 20.0**2], ndim)), (rows, 2 * ndim, 2 * ndim)).copy())
+    P = np.diag(np.tile([100.0**2, 20.0**2], ndim))
+    return filt.initiate(x, np.broadcast_to(P, (rows, 2 * ndim, 2 * ndim)).copy())
 
 
 def plots_with_nis(filt, model, pred, nis, R, context=None):
