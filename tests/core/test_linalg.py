@@ -227,8 +227,6 @@ def test_operation_count_add():
 
 
 @pytest.mark.parametrize("case", ["matmul-one-vector", "cho_solve-shared-L", "mahalanobis-shared-L"])
-@pytest.mark.xfail(strict=True, reason="bug: counts use one operand's leading axes, not the broadcast "
-                   "batch, so a shared matrix or a single vector against a stack is undercounted")
 def test_counts_follow_the_broadcast_batch(rng, case):
     K = 10
     S = random_spd(rng, 1, 3)[0]

@@ -446,9 +446,9 @@ def test_reference_path_counts_shape_implied_multiply_adds(kind, motion):
         assert ops.madds == expected
 
 
-@pytest.mark.xfail(strict=True, reason="bug: the compiled (numba) Kalman kernels bypass core.linalg, so "
-                   "counting() records 0 multiply-adds for compiled filters (cost per update is unmeasured)")
-def test_compiled_path_is_counted_like_the_reference():
+def test_compiled_path_is_counted_and_no_dearer_than_the_reference():
+    """The compiled kernels report their own multiply-adds: the block-structured predict does
+    fewer than the dense reference, the innovation the same."""
     counts = []
     for compiled in (True, False):
         case = Case("kalman", "cv3", compiled)
@@ -459,7 +459,7 @@ def test_compiled_path_is_counted_like_the_reference():
             z, R = case.measurement(rng, pred)
             case.filt.update(pred, z, case.filt.innovate(pred, z, case.model, {"R": R}))
         counts.append(ops.madds)
-    assert counts[0] == counts[1]
+    assert 0 < counts[0] < counts[1]
 
 
 # ---------------------------------------------------------------------------- registry pick-up

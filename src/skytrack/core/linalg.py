@@ -51,22 +51,33 @@ def counting():
         _active.remove(counter)
 
 
-def _count(name: str, count: int) -> None:
+def is_counting() -> bool:
+    """True inside a ``counting()`` block (compiled kernels then report their own counts)."""
+    return bool(_active)
+
+
+def count(name: str, madds: int) -> None:
+    """Add ``madds`` multiply-adds under ``name`` to every active counter (for compiled kernels)."""
     for counter in _active:
-        counter.add(name, count)
+        counter.add(name, madds)
 
 
-def _batch(shape: tuple[int, ...], trailing: int) -> int:
-    return math.prod(shape[: len(shape) - trailing]) if len(shape) > trailing else 1
+_count = count
+
+
+def _batch(*leading: tuple[int, ...]) -> int:
+    """Rows of the broadcast batch of the operands' leading shapes."""
+    return math.prod(np.broadcast_shapes(*leading))
 
 
 def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Stacked matrix product ``a @ b`` (``b`` may be a stack of vectors ``[..., n]``)."""
-    vector = b.ndim == a.ndim - 1
+    vector = b.ndim == 1 or b.ndim == a.ndim - 1
     out = np.einsum("...ij,...j->...i", a, b) if vector else a @ b
     if _active:
         n_cols = 1 if vector else b.shape[-1]
-        _count("matmul", _batch(out.shape, 1 if vector else 2) * a.shape[-2] * a.shape[-1] * n_cols)
+        rows = _batch(a.shape[:-2], b.shape[:-1] if vector else b.shape[:-2])
+        _count("matmul", rows * a.shape[-2] * a.shape[-1] * n_cols)
     return out
 
 
@@ -82,7 +93,7 @@ def sandwich(A: np.ndarray, P: np.ndarray, add: np.ndarray | None = None) -> np.
         out = out + add
     if _active:
         m, n = A.shape[-2], A.shape[-1]
-        _count("sandwich", _batch(out.shape, 2) * (m * n * n + m * n * m))
+        _count("sandwich", _batch(out.shape[:-2]) * (m * n * n + m * n * m))
     return symmetrize(out)
 
 
@@ -94,7 +105,7 @@ def cholesky(S: np.ndarray) -> np.ndarray:
         raise ValueError("innovation covariance is not positive definite") from None
     if _active:
         m = S.shape[-1]
-        _count("cholesky", _batch(S.shape, 2) * (m**3 // 6 + m))
+        _count("cholesky", _batch(S.shape[:-2]) * (m**3 // 6 + m))
     return L
 
 
@@ -106,7 +117,7 @@ def cho_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     y = np.linalg.solve(np.swapaxes(L, -1, -2), w)
     if _active:
         m = L.shape[-1]
-        _count("cho_solve", _batch(L.shape, 2) * m * m * rhs.shape[-1])
+        _count("cho_solve", _batch(L.shape[:-2], rhs.shape[:-2]) * m * m * rhs.shape[-1])
     return y[..., 0] if vector else y
 
 
@@ -115,7 +126,7 @@ def mahalanobis_chol(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     w = np.linalg.solve(L, nu[..., None])[..., 0]
     if _active:
         m = L.shape[-1]
-        _count("mahalanobis", _batch(L.shape, 2) * (m * m // 2 + m))
+        _count("mahalanobis", _batch(L.shape[:-2], nu.shape[:-1]) * (m * m // 2 + m))
     return np.einsum("...i,...i->...", w, w)
 
 

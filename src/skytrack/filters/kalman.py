@@ -70,6 +70,9 @@ class KalmanFilter(BatchFilter):
             if backwards.any():
                 Fa[backwards] = np.linalg.inv(Fa[backwards])
             x_new, P_new = kernels.predict_blocks(x, P, Fa, Qa, scale)
+            if linalg.is_counting():
+                o, axes = Fa.shape[-1], model.ndim
+                linalg.count("predict_blocks", len(x) * (axes * o * o + 2 * axes * axes * o**3))
             return GaussianState(x_new, P_new)
         F = model.F_batch(step)
         Q = model.Q_batch(step) * scale[:, None, None]
@@ -90,6 +93,9 @@ class KalmanFilter(BatchFilter):
             S, L, d2, logdet, ok = kernels.innovate_dense(state.P, np.ascontiguousarray(H), R, nu)
             if not ok.all():
                 raise ValueError("innovation covariance is not positive definite")
+            if linalg.is_counting():
+                rows, mm, n = H.shape
+                linalg.count("innovate_dense", rows * (mm * n * n + mm * mm * n + mm**3 // 6 + mm + mm * mm // 2 + mm))
         else:
             S = linalg.sandwich(H, state.P, R)
             L = linalg.cholesky(S)
@@ -105,6 +111,9 @@ class KalmanFilter(BatchFilter):
         H, R, nu, L = innovation.H, innovation.R, innovation.nu, innovation.chol
         if self.compiled and self.form == "joseph" and not self.recorder.active:
             x_new, P_new = kernels.update_dense(x, P, np.ascontiguousarray(H), R, nu, L)
+            if linalg.is_counting():
+                rows, m, n = H.shape
+                linalg.count("update_dense", rows * (2 * n * n * m + 2 * n * m * m + n * m + n**3 + n * n * (n + m)))
         else:
             PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
             K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)

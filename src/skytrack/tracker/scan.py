@@ -23,18 +23,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.association.kernels import sweep_candidates
-from skytrack.association.base import Pairs
+from skytrack.association.base import PairScores, Pairs
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.registry import build_assigner, build_scorer
 from skytrack.core.linalg import max_eigenvalue_sym
 from skytrack.core.plots import PlotBatch
 from skytrack.core.validate import require_positive
+from skytrack.filters.base import GaussianState, Innovation
+from skytrack.filters.kalman import KalmanFilter
+from skytrack.geo.polar import EARTH_RADIUS_M
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
+from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
+from skytrack.tracker.kernels import gate_stage_cv
 from skytrack.tracker.schedule import Schedule
 
 #: search-radius safety factor over the exact Mahalanobis bound
@@ -109,6 +114,9 @@ class ScanProcessor:
                                    if dim == 3 and geometry.use_range_rate and s.sigma_range_rate_mps is not None else None)
             for s in sensors.sensors
         ]
+        self.fused_q = _fused_cv_q(filter, assoc)
+        self.fused = [self.fused_q is not None and model.linear and not sensor.is_moving
+                      for model, sensor in zip(self.measurements, sensors.sensors)]
 
     def convert(self, plots: PlotBatch) -> ConvertedPlots:
         """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the default."""
@@ -180,6 +188,8 @@ class ScanProcessor:
     # ------------------------------------------------------------------ one stage
     def _associate(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
         """Gate, score, assign and update one stage; returns (track rows, plot rows) assigned."""
+        if self.fused[s]:
+            return self._associate_fused(s, tracks, free, t_ref, plots, converted, manoeuvre)
         bank = self.bank
         dim = self.dim
         context = {"manoeuvre": True} if manoeuvre else None
@@ -216,6 +226,52 @@ class ScanProcessor:
         updated, _ = self.filter.update(predicted.take(chosen), z[chosen], innovation.take(chosen))
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(ti)
+        self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen])
+        return ti, pj
+
+    def _associate_fused(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
+        """:meth:`_associate` with the gate in one compiled call (:func:`skytrack.tracker.kernels.gate_stage_cv`)."""
+        bank = self.bank
+        dim = self.dim
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        context = {"manoeuvre": True} if manoeuvre else None
+        empty = np.zeros(0, np.intp)
+        state = bank.state.take(tracks)
+        scale = self.filter.q_scale(state, context) if hasattr(self.filter, "q_scale") else np.ones(len(tracks))
+        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        geometry = self.config.geometry
+        replace_height = not sensor.is_3d
+        ti_local, pj_local, d2, x_pred, P_pred, position, covariance, chol, n_candidates = gate_stage_cv(
+            state.x, state.P, bank.t[tracks], scale, t_ref, bank.alt_m[tracks], plots.time[free],
+            converted.position[free], converted.covariance[free], np.isfinite(plots.mode_c_m[free]),
+            plots.range_m[free], plots.azimuth[free], self.fused_q, dim, self.search_scale, margin_s, 0.95,
+            self.scorer.gate(dim), replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0,
+            EARTH_RADIUS_M, sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, geometry.mode_c_sigma_m**2,
+            np.ascontiguousarray(sensor.rotation, dtype=float), np.asarray(sensor.position, dtype=float),
+        )
+        self.stats["candidate_pairs"] += n_candidates
+        if len(ti_local) == 0:
+            return empty, empty
+        ti, pj = tracks[ti_local], free[pj_local]
+        scores = PairScores(Pairs(ti, pj), d2, np.ones(len(d2), bool), np.full(len(bank), self.scorer.gate(dim + 1)))
+        chosen = self.assigner.assign(scores, len(bank), len(plots))
+        if len(chosen) == 0:
+            return empty, empty
+        ti, pj = ti[chosen], pj[chosen]
+        predicted = state.take(ti_local[chosen])
+        predicted.x, predicted.P = x_pred[chosen], P_pred[chosen]
+        count = len(chosen)
+        z = position[chosen, :dim]
+        H = np.zeros((count, dim, self.order * dim))
+        H[:, np.arange(dim), self.pos] = 1.0
+        m = np.full(count, dim)
+        innovation = Innovation(z - x_pred[chosen][:, self.pos], None, chol[chosen], d2[chosen], None, None, m, H,
+                                covariance[chosen, :dim, :dim], predicted,
+                                {"manoeuvre": np.full(count, manoeuvre)})
+        updated, _ = self.filter.update(predicted, z, innovation)
+        if manoeuvre:
+            self.stats["manoeuvre_gate_hits"] += count
         self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen])
         return ti, pj
 
@@ -286,3 +342,24 @@ class ScanProcessor:
             mode3a=plots.mode3a, icao24=plots.mode_s, iff=plots.iff,
         )
         self.stats["tracks_started"] += count
+
+
+def _fused_cv_q(filter, association) -> float | None:
+    """The CV process-noise PSD when the compiled stage applies to this filter and association, else None.
+
+    It applies to compiled Kalman filters (plain or with the psi switch) in Joseph form on a
+    constant-velocity model with the same noise on every axis, with the d2 scorer and the GNN
+    assigner.
+    """
+    kalman = getattr(filter, "kalman", filter)
+    if not (isinstance(kalman, KalmanFilter) and kalman.compiled and kalman.form == "joseph"):
+        return None
+    if not issubclass(filter.state_type, GaussianState) or filter.recorder.active or kalman.recorder.active:
+        return None
+    motion = kalman.transition
+    axis = motion.axes[0]
+    if not (motion.identical_axes and type(axis) is ConstantVelocityAxis):
+        return None
+    if not (association.compiled and association.scorer == "d2" and association.assigner == "gnn"):
+        return None
+    return float(axis.q)

@@ -1,0 +1,304 @@
+"""Compiled gate of one association stage for the common case (numba, cached).
+
+For a Kalman-family filter on a constant-velocity model with identical axes and linear
+position measurements (converted plots of a ground radar), :func:`gate_stage_cv` does in one
+call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from parts:
+
+1. each track predicted to its reference time (process-noise factor per track), its position
+   spread ``sqrt(lambda_max)``;
+2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x (plots
+   with a spread above the batch's ``wide_quantile`` are checked against every track);
+3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
+4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
+   track has a Mode C altitude — the plot placed again at that altitude on the sphere model
+   (the same formulas as :func:`skytrack.geo.polar.slant_to_local` and
+   :func:`skytrack.models.conversion.convert_plots`);
+5. ``S = P_pos + R``, its Cholesky factor, ``d^2``; pairs with ``d^2 <= gate`` are returned
+   with their predicted state, measurement and factor.
+
+The composed path (numpy reference parts) is kept and tested equal to this kernel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
+    step = abs(dt)
+    f = dt  # F(|dt|)^-1 = F(-|dt|) for constant velocity
+    q00 = q * step * step * step / 3.0 * scale
+    q01 = q * step * step / 2.0 * scale
+    q11 = q * step * scale
+    n = 2 * ndim
+    for a in range(ndim):
+        i = 2 * a
+        x_out[i] = x[i] + f * x[i + 1]
+        x_out[i + 1] = x[i + 1]
+    for a in range(ndim):
+        for b in range(ndim):
+            i = 2 * a
+            j = 2 * b
+            m00 = P[i, j]
+            m01 = P[i, j + 1]
+            m10 = P[i + 1, j]
+            m11 = P[i + 1, j + 1]
+            r00 = m00 + f * m10
+            r01 = m01 + f * m11
+            P_out[i, j] = r00 + r01 * f
+            P_out[i, j + 1] = r01
+            P_out[i + 1, j] = m10 + m11 * f
+            P_out[i + 1, j + 1] = m11
+            if a == b:
+                P_out[i, j] += q00
+                P_out[i, j + 1] += q01
+                P_out[i + 1, j] += q01
+                P_out[i + 1, j + 1] += q11
+    for i in range(n):
+        for j in range(i + 1, n):
+            mean = 0.5 * (P_out[i, j] + P_out[j, i])
+            P_out[i, j] = mean
+            P_out[j, i] = mean
+
+
+@njit(cache=True, nogil=True)
+def _max_eig_sym(M, dim):
+    if dim == 2:
+        a = M[0, 0]
+        b = M[0, 1]
+        c = M[1, 1]
+        return 0.5 * (a + c) + np.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
+    best = 0.0
+    for i in range(dim):
+        total = 0.0
+        for j in range(dim):
+            total += abs(M[i, j])
+        best = max(best, total)
+    return best
+
+
+@njit(cache=True, nogil=True)
+def _place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pos_out, cov_out):
+    """A 2-D plot at a known height: common-frame position and covariance (sphere model)."""
+    a = earth + sensor_alt
+    b = earth + height
+    s = (r * r - (a - b) ** 2) / (4.0 * a * b)
+    consistent = s >= 0.0 and s <= 1.0
+    s = min(max(s, 0.0), 1.0)
+    phi = 2.0 * np.arcsin(np.sqrt(s))
+    sin_phi = np.sin(phi)
+    cos_phi = np.cos(phi)
+    ground = b * sin_phi
+    up = b * cos_phi - a
+    sin_az = np.sin(az)
+    cos_az = np.cos(az)
+    local = np.empty(3)
+    local[0] = ground * sin_az
+    local[1] = ground * cos_az
+    local[2] = up
+    half_sin = max(0.5 * sin_phi, 1e-12)
+    dphi_dr = (r / (2.0 * a * b)) / half_sin
+    dphi_db = (-(b - a) / (2.0 * a * b) - s / b) / half_sin
+    dground_dr = b * cos_phi * dphi_dr
+    dground_db = sin_phi + b * cos_phi * dphi_db
+    J = np.zeros((3, 3))
+    J[0, 0] = dground_dr * sin_az
+    J[0, 1] = ground * cos_az
+    J[0, 2] = dground_db * sin_az
+    J[1, 0] = dground_dr * cos_az
+    J[1, 1] = -ground * sin_az
+    J[1, 2] = dground_db * cos_az
+    J[2, 0] = -b * sin_phi * dphi_dr
+    J[2, 2] = cos_phi - b * sin_phi * dphi_db
+    var = np.empty(3)
+    var[0] = var_r
+    var[1] = var_az
+    var[2] = var_h
+    local_cov = np.zeros((3, 3))
+    if consistent:
+        for i in range(3):
+            for j in range(3):
+                acc = 0.0
+                for k in range(3):
+                    acc += J[i, k] * var[k] * J[j, k]
+                local_cov[i, j] = acc
+    else:
+        spread = r * r + var_r
+        local_cov[0, 0] = spread
+        local_cov[1, 1] = spread
+        local_cov[2, 2] = var_h + var_r
+    for j in range(3):
+        acc = 0.0
+        for k in range(3):
+            acc += local[k] * rot[k, j]
+        pos_out[j] = acc + origin[j]
+    tmp = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += rot[k, i] * local_cov[k, j]
+            tmp[i, j] = acc
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += tmp[i, k] * rot[k, j]
+            cov_out[i, j] = acc
+
+
+@njit(cache=True, nogil=True)
+def gate_stage_cv(x, P, t, scale, t_ref, alt_m, plot_time, plot_pos, plot_cov, plot_has_mode_c, plot_range,
+                  plot_azimuth, q, ndim, search_scale, margin_s, wide_quantile, gate, replace_height, sensor_alt, earth,
+                  var_r, var_az, var_h, rot, origin):
+    n_tracks = x.shape[0]
+    n_plots = plot_pos.shape[0]
+    n = 2 * ndim
+    # 1. reference prediction and search radius per track
+    ref_pos = np.empty((n_tracks, ndim))
+    sigma_t = np.empty(n_tracks)
+    margin = np.empty(n_tracks)
+    xr = np.empty(n)
+    Pr = np.empty((n, n))
+    block = np.empty((ndim, ndim))
+    for k in range(n_tracks):
+        _predict_cv_row(x[k], P[k], t_ref[k] - t[k], q, scale[k], ndim, xr, Pr)
+        speed2 = 0.0
+        for a in range(ndim):
+            ref_pos[k, a] = xr[2 * a]
+            speed2 += xr[2 * a + 1] ** 2
+            for b in range(ndim):
+                block[a, b] = Pr[2 * a, 2 * b]
+        sigma_t[k] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+        margin[k] = np.sqrt(speed2) * margin_s + 1.0
+    sigma_p = np.empty(n_plots)
+    for j in range(n_plots):
+        for a in range(ndim):
+            for b in range(ndim):
+                block[a, b] = plot_cov[j, a, b]
+        sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+    # 2. candidates by sort-and-sweep (narrow plots) and brute force (wide plots: spread above
+    #    the batch's wide_quantile, linear interpolation as numpy.quantile)
+    wide_limit = np.inf
+    if n_plots > 20:
+        ranked = np.sort(sigma_p)
+        where = wide_quantile * (n_plots - 1)
+        below = int(np.floor(where))
+        above = min(below + 1, n_plots - 1)
+        wide_limit = ranked[below] + (where - below) * (ranked[above] - ranked[below])
+    narrow_max = 0.0
+    for j in range(n_plots):
+        if sigma_p[j] <= wide_limit and sigma_p[j] > narrow_max:
+            narrow_max = sigma_p[j]
+    xs = np.empty(n_plots)
+    for j in range(n_plots):
+        xs[j] = plot_pos[j, 0] if sigma_p[j] <= wide_limit else np.inf
+    order = np.argsort(xs)
+    xs_sorted = xs[order]
+    capacity = 2 * (n_tracks + n_plots) + 16
+    out_t = np.empty(capacity, np.int64)
+    out_p = np.empty(capacity, np.int64)
+    count = 0
+    for k in range(n_tracks):
+        reach = search_scale * (sigma_t[k] + narrow_max) + margin[k]
+        lo = np.searchsorted(xs_sorted, ref_pos[k, 0] - reach)
+        hi = np.searchsorted(xs_sorted, ref_pos[k, 0] + reach, side="right")
+        for s in range(lo, hi):
+            j = order[s]
+            radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
+            d2 = 0.0
+            for a in range(ndim):
+                diff = plot_pos[j, a] - ref_pos[k, a]
+                d2 += diff * diff
+            if d2 <= radius * radius:
+                if count == capacity:
+                    capacity *= 2
+                    out_t = _grow(out_t, capacity)
+                    out_p = _grow(out_p, capacity)
+                out_t[count] = k
+                out_p[count] = j
+                count += 1
+    for j in range(n_plots):
+        if sigma_p[j] <= wide_limit:
+            continue
+        for k in range(n_tracks):
+            radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
+            d2 = 0.0
+            for a in range(ndim):
+                diff = plot_pos[j, a] - ref_pos[k, a]
+                d2 += diff * diff
+            if d2 <= radius * radius:
+                if count == capacity:
+                    capacity *= 2
+                    out_t = _grow(out_t, capacity)
+                    out_p = _grow(out_p, capacity)
+                out_t[count] = k
+                out_p[count] = j
+                count += 1
+    # 3.-5. exact gate of every candidate at its plot's time
+    x_pred = np.empty((count, n))
+    P_pred = np.empty((count, n, n))
+    pair_pos = np.empty((count, 3))
+    pair_cov = np.empty((count, 3, 3))
+    L = np.zeros((count, ndim, ndim))
+    d2_out = np.empty(count)
+    inside = np.zeros(count, np.bool_)
+    S = np.empty((ndim, ndim))
+    w = np.empty(ndim)
+    for c in range(count):
+        k = out_t[c]
+        j = out_p[c]
+        _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[c], P_pred[c])
+        if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
+            _place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
+                      pair_pos[c], pair_cov[c])
+        else:
+            pair_pos[c] = plot_pos[j]
+            pair_cov[c] = plot_cov[j]
+        for a in range(ndim):
+            for b in range(ndim):
+                S[a, b] = P_pred[c, 2 * a, 2 * b] + pair_cov[c, a, b]
+        for a in range(ndim):
+            for b in range(a + 1, ndim):
+                mean = 0.5 * (S[a, b] + S[b, a])
+                S[a, b] = mean
+                S[b, a] = mean
+        ok = True
+        for a in range(ndim):
+            for b in range(a + 1):
+                acc = S[a, b]
+                for l in range(b):
+                    acc -= L[c, a, l] * L[c, b, l]
+                if a == b:
+                    if acc <= 0.0:
+                        ok = False
+                        break
+                    L[c, a, a] = np.sqrt(acc)
+                else:
+                    L[c, a, b] = acc / L[c, b, b]
+            if not ok:
+                break
+        if not ok:
+            d2_out[c] = np.nan
+            continue
+        total = 0.0
+        for a in range(ndim):
+            acc = pair_pos[c, a] - x_pred[c, 2 * a]
+            for l in range(a):
+                acc -= L[c, a, l] * w[l]
+            w[a] = acc / L[c, a, a]
+            total += w[a] * w[a]
+        d2_out[c] = total
+        inside[c] = total <= gate
+    keep = np.flatnonzero(inside)
+    return (out_t[keep], out_p[keep], d2_out[keep], x_pred[keep], P_pred[keep], pair_pos[keep], pair_cov[keep],
+            L[keep], count)
+
+
+@njit(cache=True, nogil=True)
+def _grow(values, capacity):
+    out = np.empty(capacity, values.dtype)
+    out[: len(values)] = values
+    return out
