@@ -9,8 +9,8 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from skytrack.analysis.singer_missed import CSV_COLUMNS, CSV_NAME, FIG1_NAME, FIG2_NAME
 from skytrack.cli.study import MC_CSV_NAME, study_app
+from skytrack.studies.singer_missed import CSV_COLUMNS, CSV_NAME, FIG1_NAME, FIG2_NAME
 
 app = typer.Typer()
 app.add_typer(study_app, name="study")

@@ -1,11 +1,13 @@
 """Spec 000 R14 / TV13 and E5: Monte Carlo consistency of the filter with missed detections."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from skytrack.analysis.singer_missed import StudyConfig, filter_consistency, monte_carlo_consistency
 from skytrack.models import SingerAxisModel
 from skytrack.sim.singer_truth import simulate_singer_1d
+from skytrack.studies.singer_missed import StudyConfig, filter_consistency, monte_carlo_consistency
 
 SIGMA, SIGMA_V, PD, DT = 100.0, 5.0, 0.8, 10.0
 
@@ -70,12 +72,55 @@ def test_r14_simulator_validation():
         simulate_singer_1d(model, **{**good, "rng": 0})
 
 
+def test_r14_simulator_with_one_generator_per_run_does_not_depend_on_the_batch():
+    model = SingerAxisModel(60.0, 1.0, "exact")
+    kwargs = dict(dt=DT, n_scans=40, sigma=SIGMA, p_detection=0.6, measurement="posvel", sigma_v=SIGMA_V)
+    seeds = np.random.SeedSequence(11).spawn(6)
+    batch = simulate_singer_1d(model, runs=6, rng=[np.random.default_rng(s) for s in seeds], **kwargs)
+    for r in (0, 4):
+        alone = simulate_singer_1d(model, runs=1, rng=[np.random.default_rng(seeds[r])], **kwargs)
+        # same random numbers; the batched matrix products may round differently in the last bit
+        np.testing.assert_allclose(batch.truth[r], alone.truth[0], rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(batch.detected[r], alone.detected[0])
+        np.testing.assert_allclose(batch.measurements[r], alone.measurements[0], rtol=1e-12, atol=1e-9)
+    with pytest.raises(ValueError):
+        simulate_singer_1d(model, runs=5, rng=[np.random.default_rng(s) for s in seeds], **kwargs)
+    with pytest.raises(TypeError):
+        simulate_singer_1d(model, runs=2, rng=[0, 1], **kwargs)
+
+
+def test_e5_runs_are_seeded_per_run_from_the_spawned_seed_sequence():
+    """Run r of every cell gets a generator seeded with SeedSequence(seed).spawn(mc_runs)[r]."""
+    config = StudyConfig(sigmas=(100.0,), pds=(0.9,), variants=("pos",), fig1_sigma=100.0, fig2_pds=(0.9,), scans=20, seed=5)
+    seen = []
+
+    def recording(model, *, rng, runs, **kwargs):
+        seen.append([g.random() for g in rng])
+        return simulate_singer_1d(model, rng=rng, runs=runs, **kwargs)
+
+    monte_carlo_consistency(config, recording, mc_runs=4)
+    expected = [np.random.default_rng(s).random() for s in np.random.SeedSequence(5).spawn(4)]
+    assert seen == [expected]
+
+
 def test_e5_monte_carlo_ratios_within_three_percent():
+    """E5 at the spec's --mc-runs 2000: the ratios lie within 1 +- 0.03 for P_D >= 0.7.
+
+    (With 400 runs the sigma = 100 m, P_D = 0.7 cell is at the edge of the band: its ratio
+    deviates by more than 0.03 for about one seed in three.)
+    """
     config = StudyConfig(sigmas=(100.0, 1000.0), pds=(0.7, 0.9), fig1_sigma=100.0, fig2_pds=(0.9,), scans=300, seed=2)
     calls = []
-    table = monte_carlo_consistency(config, simulate_singer_1d, mc_runs=400, on_cell_done=lambda: calls.append(1))
+    table = monte_carlo_consistency(config, simulate_singer_1d, mc_runs=2000, on_cell_done=lambda: calls.append(1))
     assert len(table) == len(calls) == 2 * 2 * 2
     for column in ("ratio_filtered", "ratio_extrapolated"):
         assert ((table[column] - 1).abs() <= 0.03).all(), table[["variant", "sigma_m", "pd", column]]
-    again = monte_carlo_consistency(config, simulate_singer_1d, mc_runs=400)
+
+
+def test_e5_monte_carlo_is_deterministic_for_a_seed():
+    config = StudyConfig(sigmas=(100.0,), pds=(0.7, 0.9), fig1_sigma=100.0, fig2_pds=(0.9,), scans=100, seed=2)
+    table = monte_carlo_consistency(config, simulate_singer_1d, mc_runs=50)
+    again = monte_carlo_consistency(config, simulate_singer_1d, mc_runs=50)
     np.testing.assert_array_equal(table.ratio_filtered.to_numpy(), again.ratio_filtered.to_numpy())
+    other = monte_carlo_consistency(dataclasses.replace(config, seed=3), simulate_singer_1d, mc_runs=50)
+    assert not np.array_equal(table.ratio_filtered.to_numpy(), other.ratio_filtered.to_numpy())

@@ -8,15 +8,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skytrack.analysis.singer_missed import (
+from skytrack.models import SingerAxisModel
+from skytrack.studies.singer_missed import (
     CSV_COLUMNS,
     StudyConfig,
+    detection_uniforms,
     kalman_check,
     minimal_pd,
     relative_accuracy,
     run_study,
 )
-from skytrack.models import SingerAxisModel
 
 PDS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
 SIGMAS = (30.0, 100.0, 200.0, 300.0, 500.0, 1000.0, 3000.0)
@@ -263,6 +264,21 @@ def test_paper_initialisation_start():
         filt.append(P[0, 0])
     expected = math.sqrt(np.mean(filt)) / 100.0
     assert cell(paper, "pos", 100.0, 1.0).fs11_mean == pytest.approx(expected, rel=1e-9)
+
+
+def test_run_r_is_seeded_with_its_own_spawned_seed_sequence():
+    """Run r draws from SeedSequence(seed).spawn(runs)[r]: results do not depend on how runs are batched."""
+    u = detection_uniforms(7, 6, 50)
+    for r in range(6):
+        expected = np.random.default_rng(np.random.SeedSequence(7).spawn(6)[r]).random(50)
+        np.testing.assert_array_equal(u[r], expected)
+    np.testing.assert_array_equal(detection_uniforms(7, 3, 50), u[:3])
+    one = run_study(StudyConfig(runs=1, scans=200, sigmas=(100.0,), pds=(0.7,), fig1_sigma=100.0, fig2_pds=(0.7,)))
+    pattern = detection_uniforms(0, 1, 200).T < 0.7  # run 0 of seed 0, scans as rows
+    fs, fes = relative_accuracy(SingerAxisModel(60.0, 1.0, "paper"), "pos", sigma=100.0, sigma_v=5.0, dt=10.0,
+                                detection=pattern, n_scans=200, start="steady")
+    assert cell(one, "pos", 100.0, 0.7).fs11_mean == fs[0]
+    assert cell(one, "pos", 100.0, 0.7).fes11_mean == fes[0]
 
 
 @pytest.mark.parametrize("kwargs", [
