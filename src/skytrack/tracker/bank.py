@@ -38,54 +38,97 @@ STANDARD_COLUMNS: dict[str, tuple[type, object]] = {
 
 
 class TrackBank:
-    """Filter state rows plus named column arrays (read as attributes: ``bank.status``)."""
+    """Filter state rows plus named column arrays (read as attributes: ``bank.status``).
 
-    def __init__(self, filter) -> None:
+    Arrays are kept with spare capacity (doubled when full), so that appending a window's new
+    tracks and deleting lost ones move rows in place instead of reallocating every column;
+    ``state`` and the columns are views of the first ``len(bank)`` rows.  Compiled kernels may
+    work on the full arrays (:attr:`storage`, :attr:`column_storage`) and set :attr:`size`.
+    """
+
+    def __init__(self, filter, capacity: int = 64) -> None:
         self.filter = filter
         n = filter.state_dim
-        self.state: ArrayState = filter.initiate(np.zeros((0, n)), np.zeros((0, n, n)))
-        self.columns: dict[str, np.ndarray] = {}
+        self.size = 0
+        self.storage: ArrayState = filter.initiate(np.zeros((capacity, n)), np.zeros((capacity, n, n)))
+        self.column_storage: dict[str, np.ndarray] = {}
         self.defaults: dict[str, object] = {}
         for name, (dtype, default) in STANDARD_COLUMNS.items():
             self.register_column(name, dtype, default)
 
+    @property
+    def capacity(self) -> int:
+        return len(self.storage)
+
+    @property
+    def state(self) -> ArrayState:
+        """The live rows of the filter state (views: writes go to the bank)."""
+        return self.storage.take(slice(0, self.size))
+
+    @state.setter
+    def state(self, value: ArrayState) -> None:
+        self.size = 0
+        self.reserve(len(value))
+        self.storage.put(slice(0, len(value)), value)
+        self.size = len(value)
+
+    @property
+    def columns(self) -> dict[str, np.ndarray]:
+        return {name: column[: self.size] for name, column in self.column_storage.items()}
+
     def register_column(self, name: str, dtype, default) -> None:
         """Add a column (existing rows get ``default``)."""
-        if name in self.columns:
+        if name in self.column_storage:
             raise ValueError(f"track bank column {name!r} exists already")
-        self.columns[name] = np.full(len(self.state), default, dtype=dtype)
+        self.column_storage[name] = np.full(self.capacity, default, dtype=dtype)
         self.defaults[name] = default
 
     def __getattr__(self, name: str) -> np.ndarray:
-        columns = self.__dict__.get("columns")
-        if columns is not None and name in columns:
-            return columns[name]
+        storage = self.__dict__.get("column_storage")
+        if storage is not None and name in storage:
+            return storage[name][: self.__dict__["size"]]
         raise AttributeError(f"track bank has no column {name!r}")
 
     def __len__(self) -> int:
-        return len(self.state)
+        return self.size
+
+    def reserve(self, rows: int) -> None:
+        """Make room for ``rows`` live rows (amortised doubling)."""
+        if rows <= self.capacity:
+            return
+        capacity = max(rows, 2 * self.capacity)
+        grown = type(self.storage).concat([self.storage, self.storage.take(np.zeros(capacity - self.capacity, np.intp))])
+        self.storage = grown
+        for name, column in self.column_storage.items():
+            extra = np.full(capacity - len(column), self.defaults[name], dtype=column.dtype)
+            self.column_storage[name] = np.concatenate([column, extra])
 
     def append(self, state: ArrayState, **values) -> None:
         """Append the rows of ``state``; ``values`` gives column values (others get defaults)."""
         count = len(state)
         if count == 0:
             return
-        unknown = [k for k in values if k not in self.columns]
+        unknown = [k for k in values if k not in self.column_storage]
         if unknown:
             raise ValueError(f"track bank has no column(s) {unknown}")
-        self.state = type(self.state).concat([self.state, state])
-        for name, column in self.columns.items():
-            value = values.get(name, self.defaults[name])
-            new = np.broadcast_to(np.asarray(value, dtype=column.dtype), (count,))
-            self.columns[name] = np.concatenate([column, new])
+        start = self.size
+        self.reserve(start + count)
+        rows = slice(start, start + count)
+        self.storage.put(rows, state)
+        for name, column in self.column_storage.items():
+            column[rows] = values.get(name, self.defaults[name])
+        self.size = start + count
 
     def keep(self, mask: np.ndarray) -> None:
-        """Remove the tracks where ``mask`` is False."""
+        """Remove the tracks where ``mask`` is False (rows move up in place)."""
         if mask.all():
             return
-        self.state = self.state.take(mask)
-        for name in self.columns:
-            self.columns[name] = self.columns[name][mask]
+        index = np.flatnonzero(mask)
+        count = len(index)
+        self.storage.put(slice(0, count), self.storage.take(index))
+        for column in self.column_storage.values():
+            column[:count] = column[index]
+        self.size = count
 
     def estimate(self, rows=None) -> GaussianState:
         state = self.state if rows is None else self.state.take(rows)
@@ -100,9 +143,9 @@ class TrackBank:
     def load_arrays(self, arrays: dict[str, np.ndarray]) -> None:
         """Restore what :meth:`to_arrays` saved (the columns must be registered)."""
         state = {k[len("state."):]: v for k, v in arrays.items() if k.startswith("state.")}
+        missing = [name for name in self.column_storage if f"column.{name}" not in arrays]
+        if missing:
+            raise ValueError(f"saved track bank lacks column(s) {missing}")
         self.state = self.filter.state_type.from_arrays(state)
-        for name in self.columns:
-            key = f"column.{name}"
-            if key not in arrays:
-                raise ValueError(f"saved track bank lacks column {name!r}")
-            self.columns[name] = np.array(arrays[key], dtype=self.columns[name].dtype)
+        for name, column in self.column_storage.items():
+            column[: self.size] = arrays[f"column.{name}"]

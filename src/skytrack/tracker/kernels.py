@@ -6,8 +6,9 @@ call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from p
 
 1. each track predicted to its reference time (process-noise factor per track), its position
    spread ``sqrt(lambda_max)``;
-2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x (plots
-   with a spread above the batch's ``wide_quantile`` are checked against every track);
+2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x; plots
+   with a spread above the batch's ``wide_quantile`` sweep the tracks from their own side, so
+   they do not widen every track's search;
 3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
 4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
    track has a Mode C altitude — the plot placed again at that altitude on the sphere model
@@ -220,10 +221,22 @@ def gate_stage_cv(x, P, t, scale, t_ref, alt_m, plot_time, plot_pos, plot_cov, p
                 out_t[count] = k
                 out_p[count] = j
                 count += 1
+    # wide plots search the tracks, sorted by x, from their own side
+    track_order = np.argsort(ref_pos[:, 0])
+    track_xs = ref_pos[track_order, 0]
+    sigma_t_max = 0.0
+    margin_max = 0.0
+    for k in range(n_tracks):
+        sigma_t_max = max(sigma_t_max, sigma_t[k])
+        margin_max = max(margin_max, margin[k])
     for j in range(n_plots):
         if sigma_p[j] <= wide_limit:
             continue
-        for k in range(n_tracks):
+        reach = search_scale * (sigma_p[j] + sigma_t_max) + margin_max
+        lo = np.searchsorted(track_xs, plot_pos[j, 0] - reach)
+        hi = np.searchsorted(track_xs, plot_pos[j, 0] + reach, side="right")
+        for s in range(lo, hi):
+            k = track_order[s]
             radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
             d2 = 0.0
             for a in range(ndim):

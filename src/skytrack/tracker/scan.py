@@ -326,7 +326,7 @@ class ScanProcessor:
         for column, values in (("mode3a", plots.mode3a), ("icao24", plots.mode_s), ("iff", plots.iff)):
             new = values[pj]
             known = new >= 0
-            bank.columns[column][ti[known]] = new[known]
+            getattr(bank, column)[ti[known]] = new[known]
 
     def _initiate(self, plots: PlotBatch, position: np.ndarray, covariance: np.ndarray) -> None:
         """Start tentative tracks from unassigned plots."""
