@@ -302,10 +302,10 @@ def _read_csv(path: Path, text_columns: frozenset[str], source: TableSource) -> 
 
 # -- streamed CSV ---------------------------------------------------------------------
 
-#: the block size of the streaming CSV reader stays within these bounds (bytes); a block
-#: must hold at least one whole line
+#: the block size of the streaming CSV reader stays within these bounds (bytes): a block
+#: must hold at least one whole line, and a few MiB read fastest (chunks gather blocks)
 _MIN_BLOCK_BYTES = 1 << 20
-_MAX_BLOCK_BYTES = 1 << 30
+_MAX_BLOCK_BYTES = 4 << 20
 _TRUE_VALUES = pa.array(["1", "True", "TRUE", "true"])
 _BOOL_VALUES = pa.array(["1", "True", "TRUE", "true", "0", "False", "FALSE", "false"])
 #: the types pyarrow's CSV reader tries, in its order (time32 has no cast from text)
@@ -325,21 +325,46 @@ def _infer_csv_column(column: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     if column.null_count == len(column):
         return pa.nulls(len(column))
     trimmed = None
+    head = column.slice(0, 16 * _INFER_HEAD_ROWS).drop_null().slice(0, _INFER_HEAD_ROWS)
+    if len(head) == 0:
+        head = column.drop_null().slice(0, _INFER_HEAD_ROWS)
+    trimmed_head = None
     for target in _INFERRED_TYPES:
         if pa.types.is_boolean(target):
-            if pc.all(pc.is_in(column, value_set=_BOOL_VALUES), skip_nulls=True).as_py():
+            if _all_bool(head) and _all_bool(column):
                 is_true = pc.is_in(column, value_set=_TRUE_VALUES)
                 return pc.if_else(pc.is_valid(column), is_true, pa.scalar(None, pa.bool_()))
             continue
-        values = column
+        values, first = column, head
         if pa.types.is_integer(target) or pa.types.is_floating(target):
-            trimmed = trimmed if trimmed is not None else pc.utf8_trim(column, characters=" \t")
-            values = trimmed
-        try:
-            return pc.cast(values, target)
-        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-            continue
+            trimmed_head = trimmed_head if trimmed_head is not None else pc.utf8_trim(head, characters=" \t")
+            first = trimmed_head
+            if _casts(first, target):
+                trimmed = trimmed if trimmed is not None else pc.utf8_trim(column, characters=" \t")
+                values = trimmed
+        # a failing cast reads its whole input before it fails: try a few values first
+        if _casts(first, target) and (converted := _cast_or_none(values, target)) is not None:
+            return converted
     return column
+
+
+#: non-null values of a column tried first when its type is inferred
+_INFER_HEAD_ROWS = 16
+
+
+def _cast_or_none(values, target: pa.DataType):
+    try:
+        return pc.cast(values, target)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        return None
+
+
+def _all_bool(values) -> bool:
+    return bool(pc.all(pc.is_in(values, value_set=_BOOL_VALUES), skip_nulls=True).as_py())
+
+
+def _casts(values, target: pa.DataType) -> bool:
+    return _cast_or_none(values, target) is not None
 
 
 def _typed_chunk(table: pa.Table, text_columns: frozenset[str]) -> pa.Table:
