@@ -315,3 +315,121 @@ def _grow(values, capacity):
     out = np.empty(capacity, values.dtype)
     out[: len(values)] = values
     return out
+
+
+@njit(cache=True, nogil=True)
+def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_cov, ndim, manoeuvre, psi_enabled,
+                    psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
+                    z_hint, alt_m, status, mode3a, icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s,
+                    plot_iff):
+    """Kalman update (Joseph form) of the chosen pairs, the psi switch, and the bank's columns, in place.
+
+    Same arithmetic as :func:`skytrack.filters.kernels.update_dense` with the position-selecting
+    ``H``, then the spec 000 S3 switch of :class:`~skytrack.filters.maneuver.ManoeuvreSwitchFilter`
+    and :meth:`skytrack.tracker.scan.ScanProcessor._write_updates` (two-point initiation after a
+    tentative track's second plot, hit bookkeeping, altitude and identity).
+    """
+    n = 2 * ndim
+    m = ndim
+    K = np.empty((n, m))
+    y = np.empty(m)
+    A = np.empty((n, n))
+    AP = np.empty((n, n))
+    KR = np.empty((n, m))
+    x_new = np.empty(n)
+    P_new = np.empty((n, n))
+    for c in range(len(rows)):
+        k = rows[c]
+        j = plot_rows[c]
+        xp = x_pred[c]
+        Pp = P_pred[c]
+        L = chol[c]
+        # K = P H^T S^-1 with H selecting positions: P H^T is the position columns of P
+        for i in range(n):
+            for a in range(m):
+                acc = Pp[i, 2 * a]
+                for l in range(a):
+                    acc -= L[a, l] * y[l]
+                y[a] = acc / L[a, a]
+            for a in range(m - 1, -1, -1):
+                acc = y[a]
+                for l in range(a + 1, m):
+                    acc -= L[l, a] * K[i, l]
+                K[i, a] = acc / L[a, a]
+        for i in range(n):
+            acc = xp[i]
+            for a in range(m):
+                acc += K[i, a] * (pair_pos[c, a] - xp[2 * a])
+            x_new[i] = acc
+        for i in range(n):
+            for jj in range(n):
+                A[i, jj] = 1.0 if i == jj else 0.0
+            for a in range(m):
+                A[i, 2 * a] -= K[i, a]
+        for i in range(n):
+            for jj in range(n):
+                acc = 0.0
+                for l in range(n):
+                    acc += A[i, l] * Pp[l, jj]
+                AP[i, jj] = acc
+        for i in range(n):
+            for a in range(m):
+                acc = 0.0
+                for b in range(m):
+                    acc += K[i, b] * pair_cov[c, b, a]
+                KR[i, a] = acc
+        for i in range(n):
+            for jj in range(n):
+                acc = 0.0
+                for l in range(n):
+                    acc += AP[i, l] * A[jj, l]
+                for a in range(m):
+                    acc += KR[i, a] * K[jj, a]
+                P_new[i, jj] = acc
+        for i in range(n):
+            for jj in range(i + 1, n):
+                mean = 0.5 * (P_new[i, jj] + P_new[jj, i])
+                P_new[i, jj] = mean
+                P_new[jj, i] = mean
+        if psi_enabled:
+            nis = d2[c] / m
+            if manoeuvre:
+                psi[k] = True
+                nis_avg[k] = max(nis_avg[k], psi_on)
+            else:
+                if filter_updates[k] == 0:
+                    smoothed = nis
+                else:
+                    smoothed = psi_memory * nis_avg[k] + (1.0 - psi_memory) * nis
+                psi[k] = smoothed > psi_off if psi[k] else smoothed > psi_on
+                nis_avg[k] = smoothed
+            filter_updates[k] += 1
+        if two_point and n_updates[k] == 1 and status[k] == 0:
+            dt = max(plot_time[j] - t[k], 1e-3)
+            for a in range(m):
+                x_new[2 * a] = pair_pos[c, a]
+                x_new[2 * a + 1] = (pair_pos[c, a] - x[k, 2 * a]) / dt
+            for a in range(m):
+                for b in range(m):
+                    r2 = pair_cov[c, a, b]
+                    r1 = P[k, 2 * a, 2 * b]
+                    P_new[2 * a, 2 * b] = r2
+                    P_new[2 * a + 1, 2 * b + 1] = (r1 + r2) / (dt * dt)
+                    P_new[2 * a, 2 * b + 1] = r2 / dt
+                    P_new[2 * a + 1, 2 * b] = pair_cov[c, b, a] / dt
+        for i in range(n):
+            x[k, i] = x_new[i]
+            for jj in range(n):
+                P[k, i, jj] = P_new[i, jj]
+        t[k] = plot_time[j]
+        n_updates[k] += 1
+        n_misses[k] = 0
+        z_hint[k] = pair_pos[c, 2]
+        if np.isfinite(plot_mode_c[j]):
+            alt_m[k] = plot_mode_c[j]
+        if plot_mode3a[j] >= 0:
+            mode3a[k] = plot_mode3a[j]
+        if plot_mode_s[j] >= 0:
+            icao24[k] = plot_mode_s[j]
+        if plot_iff[j] >= 0:
+            iff[k] = plot_iff[j]

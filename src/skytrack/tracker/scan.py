@@ -31,6 +31,7 @@ from skytrack.core.plots import PlotBatch
 from skytrack.core.validate import require_positive
 from skytrack.filters.base import GaussianState, Innovation
 from skytrack.filters.kalman import KalmanFilter
+from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.geo.polar import EARTH_RADIUS_M
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
@@ -39,7 +40,7 @@ from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.kernels import gate_stage_cv
+from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 from skytrack.tracker.schedule import Schedule
 
 #: search-radius safety factor over the exact Mahalanobis bound
@@ -259,20 +260,21 @@ class ScanProcessor:
         if len(chosen) == 0:
             return empty, empty
         ti, pj = ti[chosen], pj[chosen]
-        predicted = state.take(ti_local[chosen])
-        predicted.x, predicted.P = x_pred[chosen], P_pred[chosen]
-        count = len(chosen)
-        z = position[chosen, :dim]
-        H = np.zeros((count, dim, self.order * dim))
-        H[:, np.arange(dim), self.pos] = 1.0
-        m = np.full(count, dim)
-        innovation = Innovation(z - x_pred[chosen][:, self.pos], None, chol[chosen], d2[chosen], None, None, m, H,
-                                covariance[chosen, :dim, :dim], predicted,
-                                {"manoeuvre": np.full(count, manoeuvre)})
-        updated, _ = self.filter.update(predicted, z, innovation)
+        storage = bank.storage
+        columns = bank.column_storage
+        psi_enabled = isinstance(storage, ManoeuvreState)
+        dummy_flags, dummy_values, dummy_counts = np.zeros(1, bool), np.zeros(1), np.zeros(1, np.int64)
+        update_write_cv(
+            ti, pj, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen], covariance[chosen],
+            dim, manoeuvre, psi_enabled, getattr(self.filter, "on", 0.0), getattr(self.filter, "off", 0.0),
+            getattr(self.filter, "memory", 0.0), self.config.initiation.method == "two-point", storage.x, storage.P,
+            storage.psi if psi_enabled else dummy_flags, storage.nis_avg if psi_enabled else dummy_values,
+            storage.n_updates if psi_enabled else dummy_counts, columns["t"], columns["n_updates"],
+            columns["n_misses"], columns["z_hint"], columns["alt_m"], columns["status"], columns["mode3a"],
+            columns["icao24"], columns["iff"], plots.time, plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+        )
         if manoeuvre:
-            self.stats["manoeuvre_gate_hits"] += count
-        self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen])
+            self.stats["manoeuvre_gate_hits"] += len(ti)
         return ti, pj
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
