@@ -17,6 +17,8 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, min_weight_full_bipartite_matching
 
+from skytrack.association.kernels import assign_clusters
+
 #: cost of a forbidden (non-gated) cell inside a cluster; finite so LSA always succeeds
 _FORBIDDEN = 1e18
 
@@ -109,17 +111,20 @@ class GNNAssigner:
         if len(inside) == 0:
             return inside
         miss = np.broadcast_to(np.asarray(scores.miss_cost, dtype=float), (n_tracks,))
-        if not self.compiled:
-            return inside[assign_gnn(ti, pj, cost, n_tracks, n_plots, miss)]
-        from skytrack.association.kernels import assign_clusters
+        return inside[self.assign_gated(ti, pj, cost, miss, n_tracks, n_plots)]
 
+    def assign_gated(self, ti: np.ndarray, pj: np.ndarray, cost: np.ndarray, miss: np.ndarray, n_tracks: int,
+                     n_plots: int) -> np.ndarray:
+        """Indices of the chosen pairs among pairs that are all inside the gate (sorted)."""
+        if not self.compiled:
+            return np.sort(assign_gnn(ti, pj, cost, n_tracks, n_plots, miss))
         chosen, big = assign_clusters(ti.astype(np.int64), pj.astype(np.int64), cost.astype(float),
-                                      np.ascontiguousarray(miss), n_tracks, n_plots, MAX_DENSE_CLUSTER)
+                                      np.ascontiguousarray(miss, dtype=float), n_tracks, n_plots, MAX_DENSE_CLUSTER)
         picked = np.flatnonzero(chosen)
         if big.any():
             rows = np.flatnonzero(big)
             picked = np.concatenate([picked, rows[sparse_assignment(ti[rows], pj[rows], cost[rows], miss)]])
-        return inside[np.sort(picked)]
+        return np.sort(picked)
 
 
 def sparse_assignment(ti: np.ndarray, pj: np.ndarray, cost: np.ndarray, miss: np.ndarray) -> np.ndarray:

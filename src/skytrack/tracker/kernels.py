@@ -151,12 +151,40 @@ def _place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origi
 
 
 @njit(cache=True, nogil=True)
-def gate_stage_cv(x, P, t, scale, t_ref, alt_m, plot_time, plot_pos, plot_cov, plot_has_mode_c, plot_range,
-                  plot_azimuth, q, ndim, search_scale, margin_s, wide_quantile, gate, replace_height, sensor_alt, earth,
-                  var_r, var_az, var_h, rot, origin):
-    n_tracks = x.shape[0]
-    n_plots = plot_pos.shape[0]
+def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
+                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, q, ndim, search_scale,
+                  margin_s, wide_quantile, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
+    """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots; the process noise
+    of a track is ``q_big`` times the model's while its psi is set or when ``forced``."""
+    n_tracks = len(tracks)
+    n_plots = len(free)
     n = 2 * ndim
+    x = np.empty((n_tracks, n))
+    P = np.empty((n_tracks, n, n))
+    t = np.empty(n_tracks)
+    alt_m = np.empty(n_tracks)
+    scale = np.empty(n_tracks)
+    for k in range(n_tracks):
+        row = tracks[k]
+        x[k] = x_all[row]
+        P[k] = P_all[row]
+        t[k] = t_all[row]
+        alt_m[k] = alt_all[row]
+        scale[k] = q_big if (forced or psi_all[row]) else 1.0
+    plot_time = np.empty(n_plots)
+    plot_pos = np.empty((n_plots, 3))
+    plot_cov = np.empty((n_plots, 3, 3))
+    plot_has_mode_c = np.empty(n_plots, np.bool_)
+    plot_range = np.empty(n_plots)
+    plot_azimuth = np.empty(n_plots)
+    for j in range(n_plots):
+        col = free[j]
+        plot_time[j] = plot_time_all[col]
+        plot_pos[j] = plot_pos_all[col]
+        plot_cov[j] = plot_cov_all[col]
+        plot_has_mode_c[j] = np.isfinite(plot_mode_c_all[col])
+        plot_range[j] = plot_range_all[col]
+        plot_azimuth[j] = plot_azimuth_all[col]
     # 1. reference prediction and search radius per track
     ref_pos = np.empty((n_tracks, ndim))
     sigma_t = np.empty(n_tracks)

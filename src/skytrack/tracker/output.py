@@ -70,8 +70,12 @@ GEODETIC_Z = "_z_geodetic"
 
 
 def finish_rows(columns: dict[str, np.ndarray], origin, dim: int) -> dict[str, np.ndarray]:
-    """Fill lat, lon (and alt_m in 3-D) of concatenated track rows; drops the working column."""
+    """Fill lat, lon (and alt_m in 3-D) of concatenated track rows and decode their identity codes;
+    drops the working column."""
     z = columns.pop(GEODETIC_Z)
+    columns["mode3a"] = decode_mode3a(columns["mode3a"])
+    columns["icao24"] = decode_icao24(columns["icao24"])
+    columns["iff"] = decode_iff(columns["iff"])
     lat, lon, alt = enu_to_geodetic(columns["x"], columns["y"], z, origin.lat, origin.lon, origin.alt_m)
     columns["lat"], columns["lon"] = lat, lon
     if dim == 3:
@@ -101,10 +105,11 @@ def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, b
     columns["status"] = np.where(bank.n_misses[rows] > 0, "coasting", "confirmed")
     columns["n_updates"] = bank.n_updates[rows]
     columns["n_misses"] = bank.n_misses[rows]
-    columns["mode3a"] = decode_mode3a(bank.mode3a[rows])
-    columns["icao24"] = decode_icao24(bank.icao24[rows])
+    # identity stays integer-coded until finish_rows decodes all rows of a drain at once
+    columns["mode3a"] = bank.mode3a[rows]
+    columns["icao24"] = bank.icao24[rows]
     columns["callsign"] = np.full(count, None, dtype=object)
-    columns["iff"] = decode_iff(bank.iff[rows])
+    columns["iff"] = bank.iff[rows]
     columns["model_probs"] = np.full(count, None, dtype=object)
     columns[GEODETIC_Z] = x[:, pos[2]] if dim == 3 else np.nan_to_num(bank.z_hint[rows])
     if full_covariance:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.association.kernels import sweep_candidates
-from skytrack.association.base import PairScores, Pairs
+from skytrack.association.base import Pairs
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.registry import build_assigner, build_scorer
 from skytrack.core.linalg import max_eigenvalue_sym
@@ -118,6 +118,9 @@ class ScanProcessor:
         self.fused_q = _fused_cv_q(filter, assoc)
         self.fused = [self.fused_q is not None and model.linear and not sensor.is_moving
                       for model, sensor in zip(self.measurements, sensors.sensors)]
+        self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
+        self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
+        self._no_psi = np.zeros(1, dtype=bool)
 
     def convert(self, plots: PlotBatch) -> ConvertedPlots:
         """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the default."""
@@ -236,33 +239,30 @@ class ScanProcessor:
         dim = self.dim
         sensor = self.sensors.sensors[s]
         schedule = self.schedule
-        context = {"manoeuvre": True} if manoeuvre else None
         empty = np.zeros(0, np.intp)
-        state = bank.state.take(tracks)
-        scale = self.filter.q_scale(state, context) if hasattr(self.filter, "q_scale") else np.ones(len(tracks))
+        storage = bank.storage
+        psi_enabled = isinstance(storage, ManoeuvreState)
+        q_big = float(self.filter.scale) if psi_enabled else 1.0
         margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
-        geometry = self.config.geometry
         replace_height = not sensor.is_3d
         ti_local, pj_local, d2, x_pred, P_pred, position, covariance, chol, n_candidates = gate_stage_cv(
-            state.x, state.P, bank.t[tracks], scale, t_ref, bank.alt_m[tracks], plots.time[free],
-            converted.position[free], converted.covariance[free], np.isfinite(plots.mode_c_m[free]),
-            plots.range_m[free], plots.azimuth[free], self.fused_q, dim, self.search_scale, margin_s, 0.95,
-            self.scorer.gate(dim), replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0,
-            EARTH_RADIUS_M, sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, geometry.mode_c_sigma_m**2,
-            np.ascontiguousarray(sensor.rotation, dtype=float), np.asarray(sensor.position, dtype=float),
+            tracks, free, storage.x, storage.P, bank.column_storage["t"], bank.column_storage["alt_m"],
+            storage.psi if psi_enabled else self._no_psi, q_big, manoeuvre, t_ref, plots.time, converted.position,
+            converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scale,
+            margin_s, 0.95, self.scorer.gate(dim), replace_height,
+            float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
+            sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
         )
         self.stats["candidate_pairs"] += n_candidates
         if len(ti_local) == 0:
             return empty, empty
         ti, pj = tracks[ti_local], free[pj_local]
-        scores = PairScores(Pairs(ti, pj), d2, np.ones(len(d2), bool), np.full(len(bank), self.scorer.gate(dim + 1)))
-        chosen = self.assigner.assign(scores, len(bank), len(plots))
+        chosen = self.assigner.assign_gated(ti, pj, d2, np.full(len(bank), self.scorer.gate(dim + 1)), len(bank),
+                                            len(plots))
         if len(chosen) == 0:
             return empty, empty
         ti, pj = ti[chosen], pj[chosen]
-        storage = bank.storage
         columns = bank.column_storage
-        psi_enabled = isinstance(storage, ManoeuvreState)
         dummy_flags, dummy_values, dummy_counts = np.zeros(1, bool), np.zeros(1), np.zeros(1, np.int64)
         update_write_cv(
             ti, pj, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen], covariance[chosen],
