@@ -125,3 +125,13 @@ def test_planar_sensor_rotation_turns_by_the_north_offset():
     az = math.radians(30.0)
     local = sensor.to_local(np.array([[1000 * math.sin(az), 1000 * math.cos(az), 0.0]]))
     np.testing.assert_allclose(local, [[0.0, 1000.0, 0.0]], atol=1e-9)
+
+
+def test_geodetic_radar_without_alt_m_stands_on_the_ellipsoid():
+    """docs/formats.md: alt_m defaults to 0; before, alt_m stayed None and every 2-D plot of
+    such a radar was placed at NaN (no tracks at all)."""
+    sensors = SensorSet(Origin(48.0, 2.0, 0.0), [Sensor("r", type="radar-2d", lat=48.1, lon=2.1)])
+    radar = sensors.sensors[0]
+    assert radar.alt_m == 0.0
+    e, n, u = pymap3d.geodetic2enu(48.1, 2.1, 0.0, 48.0, 2.0, 0.0)
+    np.testing.assert_allclose(radar.position, [e, n, u], atol=1e-6)

@@ -169,8 +169,9 @@ class SensorSet:
             raise ValueError(f"sensor {sensor.name!r} has neither lat/lon nor x/y: its position is unknown")
         if sensor.x is None:
             sensor.x, sensor.y, sensor.z = (float(v) for v in position)
-        if sensor.alt_m is None and not has_geodetic:
-            sensor.alt_m = float(position[2]) + o.alt_m
+        if sensor.alt_m is None:
+            # a geodetic position without alt_m is on the ellipsoid (docs/formats.md default)
+            sensor.alt_m = 0.0 if has_geodetic else float(position[2]) + o.alt_m
         sensor.position = position
         sensor.rotation = rotation
 
