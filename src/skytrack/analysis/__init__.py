@@ -3,6 +3,7 @@
 
 * :mod:`~skytrack.analysis.metrics` — OSPA, GOSPA (with its decomposition), RMSE, NEES;
 * :mod:`~skytrack.analysis.evaluate` — :func:`evaluate` tracks against truth (``skytrack evaluate``);
+  its parts: ``checks``, ``instants``, ``truth`` (visible runs, coverage), ``covariances``, ``evaluation``;
 * :mod:`~skytrack.analysis.report` — PPI plan view and metrics-over-time figures.
 """
 

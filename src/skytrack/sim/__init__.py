@@ -7,7 +7,8 @@
   ``result.sensors`` is the :class:`~skytrack.geo.SensorSet` written as sensors.json.
 * :func:`scale_traffic` changes the number of random aircraft (throughput benchmark).
 
-Modules: ``scenario`` (loading/validation), ``traffic`` (random aircraft), ``trajectories``
+Modules: ``scenario`` (:class:`Scenario`, loading), ``spec`` (the scenario section
+dataclasses), ``parse`` (section parsers and validation), ``traffic`` (random aircraft), ``trajectories``
 (exact arcs, Singer legs, waypoints), ``truth`` (sampling, coverage exit), ``radar``
 (beam crossings, detection, noise, SSR, clutter), ``earth`` (heights above the ellipsoid
 in the ENU frame, radar horizon), ``simulate`` (the pipeline).

@@ -18,8 +18,8 @@ import numpy as np
 import pymap3d
 
 from skytrack.geo.polar import EARTH_RADIUS_M
-from skytrack.geo.sensors import Origin
-from skytrack.geo.wgs84 import enu_rotation
+from skytrack.geo.sensors import Origin, Sensor
+from skytrack.geo.wgs84 import enu_rotation, geodetic_to_enu
 
 WGS84_A = 6_378_137.0
 WGS84_F = 1.0 / 298.257223563
@@ -121,3 +121,14 @@ def radar_horizon_range(sensor_alt_m, target_alt_m, k: float = REFRACTION_K) -> 
     hs = np.maximum(np.asarray(sensor_alt_m, dtype=float), 0.0)
     ht = np.maximum(np.asarray(target_alt_m, dtype=float), 0.0)
     return np.sqrt(2.0 * r_eff * hs + hs * hs) + np.sqrt(2.0 * r_eff * ht + ht * ht)
+
+
+def sensor_relative_positions(sensor: Sensor, origin: Origin, ground_range_m, azimuth_deg, alt_m) -> tuple[np.ndarray, np.ndarray]:
+    """Common-frame (x, y) of points at ground range / azimuth in a sensor's own frame and height ``alt_m``."""
+    ground = np.atleast_1d(np.asarray(ground_range_m, dtype=float))
+    az = np.radians(np.atleast_1d(np.asarray(azimuth_deg, dtype=float)))
+    alt = np.broadcast_to(np.asarray(alt_m, dtype=float), ground.shape)
+    sensor_origin = Origin(sensor.lat, sensor.lon, sensor.alt_m)
+    _, lat, lon, _ = place_at_height(ground * np.sin(az), ground * np.cos(az), alt, sensor_origin)
+    x, y, _ = geodetic_to_enu(lat, lon, alt, origin.lat, origin.lon, origin.alt_m)
+    return np.asarray(x), np.asarray(y)

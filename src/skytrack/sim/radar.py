@@ -37,7 +37,7 @@ import numpy as np
 from skytrack.geo.polar import cartesian_to_polar
 from skytrack.geo.sensors import Sensor
 from skytrack.sim.earth import radar_horizon_range
-from skytrack.sim.scenario import RadarSimParams
+from skytrack.sim.spec import RadarSimParams
 from skytrack.sim.trajectories import TrajectorySet
 
 FEET_PER_METRE = 1.0 / 0.3048

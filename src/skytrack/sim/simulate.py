@@ -20,7 +20,8 @@ import pandas as pd
 
 from skytrack.geo.sensors import SensorSet
 from skytrack.sim.radar import PLOT_COLUMNS, clutter_plots, radar_plots
-from skytrack.sim.scenario import Scenario, TargetSpec
+from skytrack.sim.scenario import Scenario
+from skytrack.sim.spec import TargetSpec
 from skytrack.sim.traffic import seed_stream
 from skytrack.sim.trajectories import TrajectorySet, build_trajectories
 from skytrack.sim.truth import TruthTable, sample_truth

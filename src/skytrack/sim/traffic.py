@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from skytrack.sim.scenario import (
+from skytrack.geo.sensors import Origin, SensorSet
+from skytrack.sim.earth import sensor_relative_positions
+from skytrack.sim.spec import (
     RESERVED_MODE3A,
     AccelerateLeg,
     ClimbLeg,
     Leg,
     ManeuverSpec,
-    Scenario,
     SingerLeg,
     StraightLeg,
     TargetSpec,
     TrafficSpec,
     TurnLeg,
-    sensor_relative_positions,
 )
 
 _STREAMS = ("traffic", "motion", "sensors")
@@ -34,19 +34,24 @@ def seed_stream(seed: int, purpose: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(len(_STREAMS))[_STREAMS.index(purpose)])
 
 
-def generate_traffic(scenario: Scenario) -> list[TargetSpec]:
-    """The random aircraft of ``scenario.traffic`` (deterministic in ``scenario.seed``)."""
-    spec = scenario.traffic
+def generate_traffic(
+    spec: TrafficSpec | None, *, seed: int, duration_s: float, sensors: SensorSet, origin: Origin
+) -> list[TargetSpec]:
+    """The random aircraft of a scenario's ``traffic`` section (deterministic in the scenario ``seed``).
+
+    ``duration_s``, ``sensors`` and ``origin`` are the scenario's (start times stay below the
+    duration; an annulus region is placed in the named sensor's frame).
+    """
     if spec is None or spec.count == 0:
         return []
-    rng = seed_stream(scenario.seed, "traffic")
+    rng = seed_stream(seed, "traffic")
     n = spec.count
     alt = rng.uniform(*spec.alt_m, n)
-    x, y = _positions(spec, scenario, rng, alt)
+    x, y = _positions(spec, sensors, origin, rng, alt)
     speed = rng.uniform(*spec.speed_mps, n)
     heading = rng.uniform(*spec.heading_deg, n)
     start = rng.uniform(*spec.start_time_s, n)
-    start = np.minimum(start, np.nextafter(scenario.duration_s, 0.0))
+    start = np.minimum(start, np.nextafter(duration_s, 0.0))
     transponder = rng.random(n) < spec.transponder_fraction
     has_mode_s = transponder & (rng.random(n) < spec.mode_s_fraction)
     codes = np.full(n, None, dtype=object)
@@ -76,13 +81,15 @@ def generate_traffic(scenario: Scenario) -> list[TargetSpec]:
     return targets
 
 
-def _positions(spec: TrafficSpec, scenario: Scenario, rng: np.random.Generator, alt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _positions(
+    spec: TrafficSpec, sensors: SensorSet, origin: Origin, rng: np.random.Generator, alt: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     region, n = spec.region, spec.count
     if region.type == "rectangle":
         return rng.uniform(*region.x_m, n), rng.uniform(*region.y_m, n)
     ground = np.sqrt(rng.uniform(region.min_range_m**2, region.max_range_m**2, n))
     azimuth = rng.uniform(0.0, 360.0, n)
-    return sensor_relative_positions(scenario.sensors[region.sensor], scenario.origin, ground, azimuth, alt)
+    return sensor_relative_positions(sensors[region.sensor], origin, ground, azimuth, alt)
 
 
 def allowed_mode3a_codes(first: str, last: str) -> np.ndarray:

@@ -34,7 +34,7 @@ import numpy as np
 from skytrack.geo.sensors import Origin
 from skytrack.models.motion import SingerAxisModel
 from skytrack.sim.earth import place_at_height, vertical_velocity
-from skytrack.sim.scenario import (
+from skytrack.sim.spec import (
     GRAVITY_MPS2,
     AccelerateLeg,
     ClimbLeg,

@@ -1,0 +1,136 @@
+"""Scenario dataclasses: the validated sections of a scenario file (legs, targets, radar
+simulation parameters, random traffic), shared by the loader (:mod:`skytrack.sim.scenario`),
+the traffic generator (:mod:`skytrack.sim.traffic`), the trajectories and the radar model.
+
+The keys and their meaning are documented in :mod:`skytrack.sim.scenario`; the whole
+scenario (:class:`~skytrack.sim.scenario.Scenario`) lives there too, because it draws its
+random traffic with :mod:`skytrack.sim.traffic`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Union
+
+GRAVITY_MPS2 = 9.80665
+SCENARIO_TYPES = ("radar-2d", "radar-3d")
+LEG_TYPES = ("straight", "turn", "climb", "accelerate", "singer", "waypoints")
+RESERVED_MODE3A = ("7000", "7500", "7600", "7700")
+
+
+@dataclass(frozen=True)
+class StraightLeg:
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class TurnLeg:
+    g: float
+    direction: str
+    duration_s: float | None = None
+    turn_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class ClimbLeg:
+    rate_mps: float
+    duration_s: float | None = None
+    to_alt_m: float | None = None
+
+
+@dataclass(frozen=True)
+class AccelerateLeg:
+    to_speed_mps: float
+    rate_mps2: float
+
+
+@dataclass(frozen=True)
+class SingerLeg:
+    tau_s: float
+    sigma_a_mps2: float
+    duration_s: float
+    speed_range_mps: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    x: float
+    y: float
+    alt_m: float | None = None
+
+
+@dataclass(frozen=True)
+class WaypointsLeg:
+    points: tuple[Waypoint, ...]
+    max_g: float
+
+
+Leg = Union[StraightLeg, TurnLeg, ClimbLeg, AccelerateLeg, SingerLeg, WaypointsLeg]
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """Initial state (common ENU frame) and manoeuvres of one simulated aircraft."""
+
+    id: str
+    x: float
+    y: float
+    alt_m: float
+    speed_mps: float
+    heading_deg: float
+    start_time_s: float = 0.0
+    legs: tuple[Leg, ...] = ()
+    transponder: bool = False
+    mode3a: str | None = None
+    icao24: str | None = None
+
+
+@dataclass(frozen=True)
+class RadarSimParams:
+    """Simulation-only parameters of one radar (not part of sensors.json)."""
+
+    p_mode3a: float = 1.0
+    p_mode_c: float = 1.0
+    clutter_elevation_deg: tuple[float, float] = (0.0, 10.0)
+    clutter_range_rate_mps: tuple[float, float] = (-300.0, 300.0)
+
+
+@dataclass(frozen=True)
+class RegionSpec:
+    type: str
+    sensor: str | None = None
+    min_range_m: float = 0.0
+    max_range_m: float = 0.0
+    x_m: tuple[float, float] = (0.0, 0.0)
+    y_m: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ManeuverSpec:
+    count: tuple[int, int] = (1, 3)
+    straight_s: tuple[float, float] = (20.0, 120.0)
+    weights: tuple[tuple[str, float], ...] = (("turn", 2.0), ("climb", 1.0), ("singer", 1.0), ("accelerate", 0.0))
+    turn_g: tuple[float, float] = (1.0, 3.0)
+    turn_deg: tuple[float, float] = (30.0, 180.0)
+    climb_rate_mps: tuple[float, float] = (5.0, 20.0)
+    singer_tau_s: tuple[float, float] = (10.0, 60.0)
+    singer_sigma_a_mps2: tuple[float, float] = (2.0, 10.0)
+    singer_duration_s: tuple[float, float] = (30.0, 120.0)
+    accelerate_rate_mps2: tuple[float, float] = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
+class TrafficSpec:
+    count: int
+    region: RegionSpec
+    alt_m: tuple[float, float]
+    speed_mps: tuple[float, float]
+    heading_deg: tuple[float, float] = (0.0, 360.0)
+    start_time_s: tuple[float, float] = (0.0, 0.0)
+    id_prefix: str = "T"
+    transponder_fraction: float = 1.0
+    mode_s_fraction: float = 0.0
+    mode3a_allocation: str = "unique"
+    mode3a_range: tuple[str, str] = ("0001", "7777")
+    maneuver_fraction: float = 0.0
+    maneuvers: ManeuverSpec = field(default_factory=ManeuverSpec)
