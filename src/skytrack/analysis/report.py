@@ -3,17 +3,16 @@
 Figures are drawn with matplotlib's object API on an Agg canvas (``matplotlib.figure.Figure``,
 never ``pyplot``), so nothing is displayed and no global backend is changed.
 
-Plot positions (:func:`plot_positions`) come from the FORMATS.md plots table and the
-sensor geometry (``skytrack.geo``):
+Plot positions (:func:`plot_positions`) come from the plots table (docs/formats.md) through
+the tracker's own placement, :func:`skytrack.models.conversion.place_plots`:
 
-* a plot with a measured ``elevation_deg`` is placed with ``polar_to_cartesian(r, az, el)``;
+* a plot with a measured ``elevation_deg`` is placed in polar coordinates;
 * a 2-D radar plot with a Mode C altitude (or ``default_altitude_m`` when given) is placed on
-  the sphere model with ``slant_to_local`` (FORMATS.md, 2-D radar);
-* any other plot is drawn at its slant range projected horizontally (``z = 0`` in the
+  the sphere model (docs/formats.md, 2-D radar);
+* any other plot is drawn at its slant range projected horizontally (elevation 0 in the
   sensor frame), the classical PPI display; the figure's footnote counts each case;
 
-then ``Sensor.to_common`` takes it to the common ENU frame (per-plot platform positions
-``platform_x/y/z`` for airborne radars).
+in the common ENU frame (per-plot platform positions ``platform_x/y/z`` for airborne radars).
 """
 
 from __future__ import annotations
@@ -30,7 +29,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 
-from skytrack.geo import Sensor, SensorSet, polar_to_cartesian, slant_to_local
+from skytrack.geo import Sensor, SensorSet
+from skytrack.models.conversion import place_plots
 
 __all__ = ["plot_positions", "plot_ppi", "plot_metrics_over_time"]
 
@@ -81,29 +81,20 @@ def plot_positions(plots: pd.DataFrame, sensors: SensorSet | Iterable[Sensor], d
     for name in np.unique(names):
         rows = np.flatnonzero(names == name)
         sensor = by_name[name]
-        local = np.zeros((rows.size, 3))
         has_el = np.isfinite(el[rows])
         has_alt = ~has_el & np.isfinite(alt[rows])
         use_default = ~has_el & ~has_alt & (default_altitude_m is not None)
         flat = ~has_el & ~has_alt & ~use_default
-        if np.any(has_el):
-            i = rows[has_el]
-            local[has_el] = np.column_stack(polar_to_cartesian(r[i], az[i], el[i]))
-        sensor_alt = 0.0 if sensor.alt_m is None else float(sensor.alt_m)
-        for mask, heights in ((has_alt, alt[rows]), (use_default, np.full(rows.size, default_altitude_m or 0.0))):
-            if np.any(mask):
-                x, y, z, _ = slant_to_local(r[rows[mask]], az[rows[mask]], heights[mask], sensor_alt)
-                local[mask] = np.column_stack([x, y, z])
-        if np.any(flat):
-            i = rows[flat]
-            local[flat] = np.column_stack(polar_to_cartesian(r[i], az[i]))
         platform = None
         if sensor.is_moving:
-            columns = ["platform_x", "platform_y", "platform_z"]
-            if not all(c in plots.columns for c in columns):
-                raise ValueError(f"plots table: airborne sensor {name!r} needs columns {', '.join(columns)}")
-            platform = plots[columns].to_numpy(dtype=float)[rows]
-        xyz[rows] = sensor.to_common(local, platform)
+            columns = [f"platform_{c}" for c in ("x", "y", "z", "vx", "vy", "vz")]
+            if not all(c in plots.columns for c in columns[:3]):
+                raise ValueError(f"plots table: airborne sensor {name!r} needs columns {', '.join(columns[:3])}")
+            platform = np.column_stack([plots[c].to_numpy(dtype=float) if c in plots.columns
+                                        else np.zeros(len(plots)) for c in columns])[rows]
+        elevation = np.where(flat, 0.0, el[rows])
+        height = np.where(has_alt, alt[rows], default_altitude_m if default_altitude_m is not None else np.nan)
+        xyz[rows], _ = place_plots(sensor, r[rows], az[rows], elevation, height, platform)
         projection[rows] = np.select(
             [has_el, has_alt, use_default], [PROJECTION_ELEVATION, PROJECTION_ALTITUDE, PROJECTION_DEFAULT_ALTITUDE],
             PROJECTION_HORIZONTAL,

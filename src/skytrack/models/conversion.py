@@ -67,6 +67,31 @@ def sensor_positions(sensor: Sensor, platform: np.ndarray) -> tuple[np.ndarray, 
     return np.broadcast_to(sensor.position, (count, 3)), np.zeros((count, 3))
 
 
+def place_plots(sensor: Sensor, range_m: np.ndarray, azimuth: np.ndarray, elevation: np.ndarray,
+                altitude_m: np.ndarray, platform: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Common-frame positions ``[K, 3]`` of plots, without covariance (figures, quick looks).
+
+    A plot with a finite ``elevation`` (rad) is placed in polar coordinates; any other at its
+    ``altitude_m`` on the sphere model (:func:`~skytrack.geo.polar.slant_to_local`).  Returns the
+    positions and the ``consistent`` flags of the sphere placement (True for polar plots).
+    """
+    count = len(range_m)
+    platform = np.full((count, 6), np.nan) if platform is None else platform
+    positions, _ = sensor_positions(sensor, platform)
+    local = np.empty((count, 3))
+    consistent = np.ones(count, dtype=bool)
+    polar = np.isfinite(elevation)
+    if polar.any():
+        local[polar] = np.column_stack(polar_to_cartesian(range_m[polar], azimuth[polar], elevation[polar]))
+    sphere = ~polar
+    if sphere.any():
+        sensor_alt = positions[sphere, 2] if sensor.is_moving else (sensor.alt_m or 0.0)
+        x, y, z, ok = slant_to_local(range_m[sphere], azimuth[sphere], altitude_m[sphere], sensor_alt)
+        local[sphere] = np.column_stack([x, y, z])
+        consistent[sphere] = ok
+    return local @ sensor.rotation + positions, consistent
+
+
 def convert_plots(
     sensor: Sensor,
     range_m: np.ndarray,
