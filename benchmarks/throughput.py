@@ -1,90 +1,177 @@
-"""Tracker throughput on scaled versions of the demo scenario (a benchmark, not a test).
+"""Tracker-loop throughput on one core (a benchmark, not a test; issue 5, Acceptance).
 
-For each traffic size (default 100, 1 000 and 5 000 simultaneous aircraft, all airborne
-from the start, with the demo radar's clutter) the scenario is simulated, then
-``Tracker.run`` is timed on the in-memory plots table (no file I/O) and its peak memory is
-measured with tracemalloc in a second, untimed run.  Everything runs on one core: the
-BLAS thread pools are pinned to one thread before numpy is imported.
+What is measured: the wall time of ``Tracker(sensors, TrackerConfig()).run(plots)`` on the
+in-memory plots table of a simulated scene (the DataFrame as ``simulate`` returns it: its
+conversion to a plot batch is inside the timed call; no file I/O).  Simulation is not timed.
 
-Usage:  python benchmarks/throughput.py [--sizes 100,1000,5000] [--duration 600] [--repeat 1]
+How, per scene:
+1. simulate the scene (``benchmarks/scenes.py``; default 300 s = 75 scans of the demo radar);
+2. one untimed warm-up run of the same scene (start-up, numba compilation or cache loading);
+3. ``--runs`` timed runs, each with a new Tracker: median, min and max of the wall time
+   (the process CPU time is shown beside it: the machine may be shared);
+4. one more untimed run under tracemalloc for the peak traced memory of the tracker.
+
+Scenes (``--scenes``, comma list; see ``benchmarks/scenes.py``):
+``sparse-1000`` demo scaled to 1 000 random aircraft, 20 false plots per scan;
+``small-50`` the same with 50 aircraft; ``clutter-2000`` sparse-1000 with 2 000 false plots
+per scan; ``crossing-1000`` 1 000 aircraft starting in a 25 km box 80 km from the radar with
+uniform headings.  For the last two the cost per plot is compared with sparse-1000.
+
+One core: the OpenMP/BLAS/numba thread pools are pinned to one thread before numpy is
+imported.  The script prints the machine, the date and the figures; it claims nothing.
+
+Usage:  python benchmarks/throughput.py [--scenes sparse-1000,small-50,clutter-2000,crossing-1000]
+                                        [--runs 3] [--duration 300]
 """
 
 from __future__ import annotations
 
 import os
 
-for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ[_variable] = "1"
 
 import argparse  # noqa: E402
-import dataclasses  # noqa: E402
-import resource  # noqa: E402
+import datetime as dt  # noqa: E402
+import platform  # noqa: E402
+import statistics  # noqa: E402
 import time  # noqa: E402
 import tracemalloc  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from skytrack.sim import load_scenario, scale_traffic, simulate  # noqa: E402
+import scenes  # noqa: E402  (benchmarks/scenes.py, next to this file)
+from skytrack.sim import simulate  # noqa: E402
 from skytrack.tracker import Tracker, TrackerConfig  # noqa: E402
 
+DEFAULT_SCENES = "sparse-1000,small-50,clutter-2000,crossing-1000"
+#: scene -> (kind of target, value): minimum plots/s, or maximum cost ratio to sparse-1000
+TARGETS = {
+    "sparse-1000": ("plots/s", 500_000.0),
+    "small-50": ("plots/s", 150_000.0),
+    "clutter-2000": ("ratio", 1.5),
+    "crossing-1000": ("ratio", 1.5),
+}
+REFERENCE = "sparse-1000"
 
-def scaled_demo(count: int, duration_s: float):
-    scenario = scale_traffic(load_scenario("demo"), count)
-    traffic = dataclasses.replace(scenario.traffic, start_time_s=(0.0, 0.0))
-    return dataclasses.replace(scenario, traffic=traffic, duration_s=duration_s)
+
+def machine() -> str:
+    model = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    versions = []
+    for name in ("numpy", "numba", "pandas"):
+        try:
+            versions.append(f"{name} {__import__(name).__version__}")
+        except ImportError:
+            versions.append(f"{name} absent")
+    return (f"{model}, {os.cpu_count()} cores ({usable} usable, the benchmark uses 1); "
+            f"Python {platform.python_version()}, {', '.join(versions)}; {platform.platform()}")
 
 
-def measure(count: int, duration_s: float, repeat: int) -> dict:
+def track_once(sensors, plots):
+    tracker = Tracker(sensors, TrackerConfig())
+    wall, cpu = time.perf_counter(), time.process_time()
+    tracks = tracker.run(plots)
+    return time.perf_counter() - wall, time.process_time() - cpu, tracks
+
+
+def measure(name: str, duration_s: float, runs: int, console: Console) -> dict:
     started = time.perf_counter()
-    result = simulate(scaled_demo(count, duration_s))
+    result = simulate(scenes.build(name, duration_s))
     simulate_s = time.perf_counter() - started
     plots, sensors = result.plots, result.sensors
-    best = float("inf")
-    for _ in range(repeat):
-        tracker = Tracker(sensors, TrackerConfig())
-        started = time.perf_counter()
-        tracks = tracker.run(plots)
-        best = min(best, time.perf_counter() - started)
+    warm_s, _, _ = track_once(sensors, plots)  # untimed: start-up and JIT compilation / cache loading
+    walls, cpus = [], []
+    for _ in range(runs):
+        wall, cpu, tracks = track_once(sensors, plots)
+        walls.append(wall)
+        cpus.append(cpu)
     tracemalloc.start()
     Tracker(sensors, TrackerConfig()).run(plots)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    n_false = int((plots["truth_id"] == "").sum())
-    return {
-        "aircraft": count + len(result.scenario.targets),
-        "plots": len(plots),
-        "false_plots": n_false,
-        "scans": int(round(duration_s / sensors.sensors[0].scan_period_s)),
-        "simulate_s": simulate_s,
-        "track_s": best,
-        "plots_per_s": len(plots) / best,
+    n = len(plots)
+    median = statistics.median(walls)
+    row = {
+        "scene": name,
+        "aircraft": int(result.truth["target_id"].nunique()),
+        "plots": n,
+        "false_plots": int((plots["truth_id"] == "").sum()),
+        "scans": int(plots["scan"].nunique()),
         "confirmed_tracks": int(tracks["track_id"].nunique()),
-        "tracker_peak_mib": peak / 2**20,
-        "process_peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "median_s": median, "min_s": min(walls), "max_s": max(walls),
+        "cpu_median_s": statistics.median(cpus),
+        "plots_per_s": n / median,
+        "us_per_plot": 1e6 * median / n,
+        "peak_mib": peak / 2**20,
+        "in_box": scenes.in_box_fraction(result.truth) if name.startswith("crossing") else None,
     }
+    console.print(
+        f"{name}: simulated in {simulate_s:.1f} s, warm-up run {warm_s:.2f} s, timed runs "
+        + ", ".join(f"{w:.3f}" for w in walls) + f" s -> {row['plots_per_s']:,.0f} plots/s"
+        + ("" if row["in_box"] is None else f"; {100 * row['in_box']:.0f} % of truth samples inside the box")
+    )
+    return row
+
+
+def verdicts(rows: list[dict], runs: int) -> list[str]:
+    by_name = {r["scene"]: r for r in rows}
+    reference = by_name.get(REFERENCE)
+    lines = []
+    for r in rows:
+        head = f"{r['scene']}: {r['plots_per_s']:,.0f} plots/s (median of {runs}), {r['us_per_plot']:.3f} us/plot"
+        kind, value = TARGETS.get(r["scene"], (None, None))
+        if kind == "plots/s":
+            lines.append(f"{head}, target {value:,.0f} plots/s: {'PASS' if r['plots_per_s'] >= value else 'FAIL'}")
+        elif kind == "ratio" and reference is not None:
+            ratio = r["us_per_plot"] / reference["us_per_plot"]
+            lines.append(f"{head}, cost ratio to {REFERENCE} {ratio:.2f}, target <= {value:g}: "
+                         f"{'PASS' if ratio <= value else 'FAIL'}")
+        elif kind == "ratio":
+            lines.append(f"{head}, target ratio <= {value:g} to {REFERENCE}: not run (add {REFERENCE} to --scenes)")
+        else:
+            lines.append(f"{head}, no target")
+    return lines
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="100,1000,5000", help="comma-separated numbers of random aircraft")
-    parser.add_argument("--duration", type=float, default=600.0, help="scenario length (s)")
-    parser.add_argument("--repeat", type=int, default=1, help="timed runs per size (best is kept)")
+    parser.add_argument("--scenes", default=DEFAULT_SCENES, help=f"comma-separated scenes (default {DEFAULT_SCENES})")
+    parser.add_argument("--runs", type=int, default=3, help="timed runs per scene (the median is reported)")
+    parser.add_argument("--duration", type=float, default=300.0, help="simulated time per scene in s (default 300 = 75 scans)")
     args = parser.parse_args()
-    console = Console(width=140)
-    table = Table(title="skytrack tracker throughput (one core, scan-batched, no file I/O)")
-    for column in ("aircraft", "plots (false)", "scans", "track time", "plots/s", "confirmed tracks",
-                   "tracker peak", "process peak RSS"):
+    if args.runs < 1:
+        parser.error("--runs must be >= 1")
+    console = Console(width=200)
+    console.print(f"machine: {machine()}")
+    console.print(f"date: {dt.datetime.now().astimezone().isoformat(timespec='seconds')}")
+    console.print(f"scene length {args.duration:g} s, {args.runs} timed runs after one untimed warm-up run")
+    rows = [measure(name.strip(), args.duration, args.runs, console) for name in args.scenes.split(",") if name.strip()]
+    reference = next((r for r in rows if r["scene"] == REFERENCE), None)
+    table = Table(title=f"skytrack tracker loop throughput (one core, in-memory plots, median of {args.runs} runs; cost ratio = us/plot / {REFERENCE})")
+    for column in ("scene", "aircraft", "plots (false)", "scans", "confirmed tracks", "track time median [min-max]",
+                   "CPU time", "plots/s", "us/plot", "cost ratio", "peak traced"):
         table.add_column(column, justify="right")
-    for size in (int(s) for s in args.sizes.split(",")):
-        row = measure(size, args.duration, args.repeat)
+    for r in rows:
+        ratio = "" if reference is None else f"{r['us_per_plot'] / reference['us_per_plot']:.2f}"
         table.add_row(
-            str(row["aircraft"]), f"{row['plots']:,} ({row['false_plots']:,})", str(row["scans"]),
-            f"{row['track_s']:.2f} s", f"{row['plots_per_s']:,.0f}", str(row["confirmed_tracks"]),
-            f"{row['tracker_peak_mib']:.0f} MiB", f"{row['process_peak_rss_mib']:.0f} MiB",
+            r["scene"], f"{r['aircraft']:,}", f"{r['plots']:,} ({r['false_plots']:,})", str(r["scans"]),
+            f"{r['confirmed_tracks']:,}", f"{r['median_s']:.3f} s [{r['min_s']:.3f}-{r['max_s']:.3f}]",
+            f"{r['cpu_median_s']:.3f} s", f"{r['plots_per_s']:,.0f}", f"{r['us_per_plot']:.3f}", ratio,
+            f"{r['peak_mib']:.0f} MiB",
         )
-        console.print(f"{size} aircraft: simulated in {row['simulate_s']:.1f} s, tracked at {row['plots_per_s']:,.0f} plots/s")
     console.print(table)
+    for line in verdicts(rows, args.runs):
+        print(line)
 
 
 if __name__ == "__main__":
