@@ -41,7 +41,8 @@ from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
-from skytrack.tracker.schedule import Schedule
+from skytrack.tracker.schedule import SECTOR_MARGIN, Schedule
+from skytrack.tracker.window_kernels import expect_rotating, record_and_manage
 
 #: search-radius safety factor over the exact Mahalanobis bound
 RADIUS_FACTOR = 1.05
@@ -121,6 +122,12 @@ class ScanProcessor:
         self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
         self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
         self._no_psi = np.zeros(1, dtype=bool)
+        # coverage of every radar, for "no plot is due outside coverage" (Schedule.in_any_coverage)
+        radars = [r for r in sensors.sensors if r.is_radar]
+        self._cover_all = any(not r.max_range_m or r.is_moving for r in radars)
+        bounded = [r for r in radars if r.max_range_m and not r.is_moving]
+        self._cover_xy = np.array([r.position[:2] for r in bounded], dtype=float).reshape(-1, 2)
+        self._cover_r2 = np.array([r.max_range_m**2 for r in bounded], dtype=float)
 
     def convert(self, plots: PlotBatch) -> ConvertedPlots:
         """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the default."""
@@ -147,10 +154,15 @@ class ScanProcessor:
         n_tracks = len(bank)
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
+        compiled_window = self.fused[s] and self.schedule.rotating[s]
+        expected = hit
         if n_tracks:
-            position = self._positions_at(0.5 * (w_start + w_end))
-            t_ref, expected, nearby = self.schedule.expectations(s, w_start, w_end, position, bank.last_event,
-                                                                 bank.created)
+            if compiled_window:
+                t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
+            else:
+                position = self._positions_at(0.5 * (w_start + w_end))
+                t_ref, expected, nearby = self.schedule.expectations(s, w_start, w_end, position, bank.last_event,
+                                                                     bank.created)
             status = np.where(nearby, bank.status, -1)
             confirmed = status == CONFIRMED
             # confirmed tracks first; then confirmed quiet tracks that found nothing try the
@@ -172,10 +184,41 @@ class ScanProcessor:
                                                                   stage == "manoeuvre")
                 hit[assigned_tracks] = True
                 plot_used[assigned_plots] = True
-            self.lifecycle.record_events(bank, hit, expected, w_end)
+            if not compiled_window:
+                self.lifecycle.record_events(bank, hit, expected, w_end)
         self.stats["plots_assigned"] += int(plot_used.sum())
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
-        self.lifecycle.manage(bank)
+        if compiled_window:
+            self._manage_compiled(hit, expected, w_end)
+        else:
+            self.lifecycle.manage(bank)
+
+    def _expect_compiled(self, s: int, w_start: float, w_end: float):
+        bank = self.bank
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        storage = bank.storage
+        columns = bank.column_storage
+        return expect_rotating(storage.x, columns["t"], columns["z_hint"], len(bank), self.dim, self.order,
+                               0.5 * (w_start + w_end), w_start, w_end, float(schedule.phase[s]),
+                               float(schedule.period[s]), self._rotation[s], self._origin[s],
+                               float(sensor.max_range_m or 0.0), self._cover_xy, self._cover_r2, self._cover_all,
+                               SECTOR_MARGIN)
+
+    def _manage_compiled(self, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+        bank = self.bank
+        cfg = self.config.lifecycle
+        columns = bank.columns
+        keep, misses, confirmed, hopeless, lost = record_and_manage(
+            hit, expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
+            bank.storage.P, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
+            columns["n_misses"], columns["last_event"], columns["confirmed_at"],
+        )
+        self.stats["misses"] += misses
+        self.stats["tracks_confirmed"] += confirmed
+        self.stats["tentative_dropped"] += hopeless
+        self.stats["tracks_deleted"] += lost
+        bank.keep(keep)
 
     def _positions_at(self, t: float) -> np.ndarray:
         """Deterministic 3-D position extrapolation of every track (no covariance), for geometry."""

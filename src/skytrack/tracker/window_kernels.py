@@ -1,0 +1,127 @@
+"""Compiled per-window bookkeeping for Gaussian-state banks (numba, cached).
+
+* :func:`expect_rotating` — :meth:`skytrack.tracker.schedule.Schedule.expectations` for a
+  rotating radar, with the tracks' positions extrapolated to the window's middle
+  (:meth:`~skytrack.tracker.scan.ScanProcessor._positions_at`) in the same call;
+* :func:`record_and_manage` — :meth:`skytrack.tracker.lifecycle.Lifecycle.record_events` then
+  the decisions of :meth:`~skytrack.tracker.lifecycle.Lifecycle.manage` (confirmation, hopeless
+  tentative tracks, lost confirmed tracks).
+
+The numpy methods named are the reference; tests hold the two equal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def expect_rotating(x, t, z_hint, n, dim, order, mid, w_start, w_end, phase, period, rot, origin, max_range,
+                    cover_xy, cover_r2, cover_all, sector_margin):
+    """Reference time, expected and nearby flags of the first ``n`` bank rows."""
+    t_ref = np.empty(n)
+    expected = np.empty(n, np.bool_)
+    nearby = np.empty(n, np.bool_)
+    point = np.empty(3)
+    local = np.empty(3)
+    margin = sector_margin * period
+    two_pi = 2.0 * np.pi
+    for k in range(n):
+        dt = mid - t[k]
+        for a in range(dim):
+            p = x[k, a * order] + x[k, a * order + 1] * dt
+            if order == 3:
+                p += 0.5 * x[k, a * order + 2] * dt * dt
+            point[a] = p
+        if dim == 2:
+            point[2] = z_hint[k] if np.isfinite(z_hint[k]) else 0.0
+        for j in range(3):
+            acc = 0.0
+            for l in range(3):
+                acc += (point[l] - origin[l]) * rot[j, l]
+            local[j] = acc
+        ground = np.hypot(local[0], local[1])
+        az = np.arctan2(local[0], local[1]) % two_pi
+        if az >= two_pi:
+            az = _BELOW_TWO_PI
+        crossing = phase + az / two_pi * period
+        tr = w_start + (crossing - w_start) % period
+        exp = tr < w_end
+        late = tr >= w_start + period - margin
+        nearby[k] = exp or late or tr < w_end + margin
+        if not exp:
+            shifted = tr - period if late else tr
+            tr = min(max(shifted, w_start), w_end)
+        if max_range > 0.0 and ground > max_range:
+            covered = cover_all
+            for r in range(len(cover_r2)):
+                dx = point[0] - cover_xy[r, 0]
+                dy = point[1] - cover_xy[r, 1]
+                if dx * dx + dy * dy <= cover_r2[r]:
+                    covered = True
+            exp = exp and not covered
+        t_ref[k] = tr
+        expected[k] = exp
+    return t_ref, expected, nearby
+
+
+@njit(cache=True, nogil=True)
+def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t, status,
+                      hit_bits, n_events, n_misses, last_event, confirmed_at):
+    """Events of this window, then the life-cycle decisions; returns the keep mask and counts
+    (misses, confirmed, hopeless, lost).  ``hit``/``expected`` cover the rows that existed before
+    the window's new tracks; the decisions cover all ``len(status)`` rows."""
+    mask = np.uint32((1 << confirm_n) - 1)
+    misses = 0
+    for k in range(len(hit)):
+        if hit[k] or expected[k]:
+            last_event[k] = w_end
+            hit_bits[k] = ((hit_bits[k] << np.uint32(1)) | np.uint32(1 if hit[k] else 0)) & mask
+            n_events[k] += 1
+        if expected[k] and not hit[k]:
+            n_misses[k] += 1
+            misses += 1
+    rows = len(status)
+    keep = np.ones(rows, np.bool_)
+    confirmed = 0
+    hopeless = 0
+    lost = 0
+    dim = len(pos_index)
+    block = np.empty((dim, dim))
+    for k in range(rows):
+        bits = hit_bits[k]
+        hits = 0
+        while bits:
+            hits += bits & np.uint32(1)
+            bits >>= np.uint32(1)
+        if status[k] == 0:
+            if hits >= confirm_m:
+                status[k] = 1
+                confirmed_at[k] = t[k]
+                confirmed += 1
+            else:
+                observed = min(n_events[k], confirm_n)
+                if observed - hits > confirm_n - confirm_m:
+                    keep[k] = False
+                    hopeless += 1
+                continue
+        for a in range(dim):
+            for b in range(dim):
+                block[a, b] = P[k, pos_index[a], pos_index[b]]
+        if dim == 2:
+            p, q, r = block[0, 0], block[0, 1], block[1, 1]
+            largest = 0.5 * (p + r) + np.sqrt(max(0.25 * (p - r) ** 2 + q * q, 0.0))
+        else:
+            largest = 0.0
+            for a in range(dim):
+                total = 0.0
+                for b in range(dim):
+                    total += abs(block[a, b])
+                largest = max(largest, total)
+        if n_misses[k] >= delete_misses or np.sqrt(max(largest, 0.0)) > max_sigma:
+            keep[k] = False
+            lost += 1
+    return keep, misses, confirmed, hopeless, lost
