@@ -1,8 +1,9 @@
 """Tracker-loop throughput on one core (a benchmark, not a test; issue 5, Acceptance).
 
-What is measured: the wall time of ``Tracker(sensors, TrackerConfig()).run(plots)`` on the
-in-memory plots table of a simulated scene (the DataFrame as ``simulate`` returns it: its
-conversion to a plot batch is inside the timed call; no file I/O).  Simulation is not timed.
+What is measured: the tracker loop, the wall time of ``Tracker(sensors, TrackerConfig()).run(batch)``
+on the plots of a simulated scene parsed once into a ``PlotBatch`` (as the io readers hand
+them to the tracker; no file I/O: ``benchmarks/end_to_end.py`` measures the whole command).
+Simulation and parsing are not timed.
 
 How, per scene:
 1. simulate the scene (``benchmarks/scenes.py``; default 300 s = 75 scans of the demo radar);
@@ -44,6 +45,7 @@ from rich.table import Table  # noqa: E402
 
 import scenes  # noqa: E402  (benchmarks/scenes.py, next to this file)
 from skytrack.sim import simulate  # noqa: E402
+from skytrack.core.plots import PlotBatch  # noqa: E402
 from skytrack.tracker import Tracker, TrackerConfig  # noqa: E402
 
 DEFAULT_SCENES = "sparse-1000,small-50,clutter-2000,crossing-1000"
@@ -89,14 +91,16 @@ def measure(name: str, duration_s: float, runs: int, console: Console) -> dict:
     result = simulate(scenes.build(name, duration_s))
     simulate_s = time.perf_counter() - started
     plots, sensors = result.plots, result.sensors
-    warm_s, _, _ = track_once(sensors, plots)  # untimed: start-up and JIT compilation / cache loading
+    # the loop starts from plots parsed once, as the io readers hand them to the tracker
+    batch = PlotBatch.from_frame(plots, sensors.names, [s.is_3d for s in sensors.sensors])
+    warm_s, _, _ = track_once(sensors, batch)  # untimed: start-up and JIT compilation / cache loading
     walls, cpus = [], []
     for _ in range(runs):
-        wall, cpu, tracks = track_once(sensors, plots)
+        wall, cpu, tracks = track_once(sensors, batch)
         walls.append(wall)
         cpus.append(cpu)
     tracemalloc.start()
-    Tracker(sensors, TrackerConfig()).run(plots)
+    Tracker(sensors, TrackerConfig()).run(batch)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     n = len(plots)
