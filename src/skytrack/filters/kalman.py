@@ -26,7 +26,7 @@ import numpy as np
 from skytrack.core import linalg
 from skytrack.filters import kernels
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
-from skytrack.models.motion import MotionModel
+from skytrack.models.motion import ConstantVelocityAxis, MotionModel
 
 UPDATE_FORMS = ("joseph", "standard")
 
@@ -62,6 +62,12 @@ class KalmanFilter(BatchFilter):
 
     def predict_arrays(self, x: np.ndarray, P: np.ndarray, dt: np.ndarray, scale: np.ndarray) -> GaussianState:
         model = self.transition
+        if self.compiled and model.identical_axes and type(model.axes[0]) is ConstantVelocityAxis:
+            x_new, P_new = kernels.predict_cv(x, P, np.asarray(dt, dtype=float), float(model.axes[0].q),
+                                              np.asarray(scale, dtype=float))
+            if linalg.is_counting():
+                linalg.count("predict_cv", len(x) * (model.ndim * 4 + 2 * model.ndim**2 * 8))
+            return GaussianState(x_new, P_new)
         step = np.abs(dt)
         backwards = dt < 0
         if self.compiled and model.identical_axes:

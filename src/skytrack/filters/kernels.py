@@ -194,3 +194,50 @@ def update_dense(x, P, H, R, nu, L):
                 P_out[k, i, j] = mean
                 P_out[k, j, i] = mean
     return x_out, P_out
+
+
+@njit(cache=True, nogil=True)
+def predict_cv(x, P, dt, q, scale):
+    """``predict_blocks`` for the constant-velocity axis model, with ``F`` and ``Q`` formed inline:
+    ``F = [[1, dt], [0, 1]]`` per axis (``F(|dt|)^-1`` for a negative step) and
+    ``Q = s q [[|dt|^3/3, |dt|^2/2], [|dt|^2/2, |dt|]]``."""
+    rows, n = x.shape
+    axes = n // 2
+    x_out = np.empty_like(x)
+    P_out = np.empty_like(P)
+    for k in range(rows):
+        f = dt[k]
+        step = abs(f)
+        s = scale[k]
+        q00 = q * step * step * step / 3.0 * s
+        q01 = q * step * step / 2.0 * s
+        q11 = q * step * s
+        for a in range(axes):
+            i = 2 * a
+            x_out[k, i] = x[k, i] + f * x[k, i + 1]
+            x_out[k, i + 1] = x[k, i + 1]
+        for a in range(axes):
+            for b in range(axes):
+                i = 2 * a
+                j = 2 * b
+                m00 = P[k, i, j]
+                m01 = P[k, i, j + 1]
+                m10 = P[k, i + 1, j]
+                m11 = P[k, i + 1, j + 1]
+                r00 = m00 + f * m10
+                r01 = m01 + f * m11
+                P_out[k, i, j] = r00 + r01 * f
+                P_out[k, i, j + 1] = r01
+                P_out[k, i + 1, j] = m10 + m11 * f
+                P_out[k, i + 1, j + 1] = m11
+                if a == b:
+                    P_out[k, i, j] += q00
+                    P_out[k, i, j + 1] += q01
+                    P_out[k, i + 1, j] += q01
+                    P_out[k, i + 1, j + 1] += q11
+        for i in range(n):
+            for j in range(i + 1, n):
+                mean = 0.5 * (P_out[k, i, j] + P_out[k, j, i])
+                P_out[k, i, j] = mean
+                P_out[k, j, i] = mean
+    return x_out, P_out

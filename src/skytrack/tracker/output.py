@@ -1,9 +1,9 @@
 """Track output: output instants and the rows of the tracks table (docs/formats.md).
 
 Confirmed tracks are reported at output instants — the end of every scan of the first
-radar, or every ``output_interval_s`` — predicted to the instant.  Rows are kept as column
-arrays per instant; one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`,
-with one geodetic conversion for all its rows.
+radar, or every ``output_interval_s`` — predicted to the instant.  Each instant keeps a compact record
+(:func:`instant_record`); one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`
+(:func:`build_table`), with one geodetic conversion and one identity decoding for all its rows.
 2-D tracks carry ``z`` null and their last Mode C altitude as ``alt_m``; lat/lon come from
 the ENU position (at the last plot's height for 2-D tracks).
 """
@@ -65,57 +65,55 @@ class OutputClock:
             self.next += self.step
 
 
-#: working column: the ENU z used for lat/lon (dropped by finish_rows)
-GEODETIC_Z = "_z_geodetic"
+def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank,
+                   full_covariance: bool) -> dict[str, np.ndarray]:
+    """What one output instant contributes: the bank's rows ``rows`` with states ``x``, ``P`` at
+    ``instant``, kept compact (variances, or the covariance's upper triangle) until
+    :func:`build_table` makes the table's columns for a whole drain at once."""
+    n = x.shape[1]
+    record = {
+        "time": np.full(len(rows), instant), "track_id": bank.track_id[rows], "x": x,
+        "var": np.diagonal(P, axis1=1, axis2=2), "n_updates": bank.n_updates[rows],
+        "n_misses": bank.n_misses[rows], "alt_m": bank.alt_m[rows], "z_hint": bank.z_hint[rows],
+        "mode3a": bank.mode3a[rows], "icao24": bank.icao24[rows], "iff": bank.iff[rows],
+    }
+    if full_covariance:
+        iu, ju = np.triu_indices(n)
+        record["upper"] = P[:, iu, ju]
+    return record
 
 
-def finish_rows(columns: dict[str, np.ndarray], origin, dim: int) -> dict[str, np.ndarray]:
-    """Fill lat, lon (and alt_m in 3-D) of concatenated track rows and decode their identity codes;
-    drops the working column."""
-    z = columns.pop(GEODETIC_Z)
-    columns["mode3a"] = decode_mode3a(columns["mode3a"])
-    columns["icao24"] = decode_icao24(columns["icao24"])
-    columns["iff"] = decode_iff(columns["iff"])
-    lat, lon, alt = enu_to_geodetic(columns["x"], columns["y"], z, origin.lat, origin.lon, origin.alt_m)
-    columns["lat"], columns["lon"] = lat, lon
-    if dim == 3:
-        columns["alt_m"] = alt
-    return columns
-
-
-def track_rows(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank, dim: int,
-               order: int, origin, full_covariance: bool) -> dict[str, np.ndarray]:
-    """The tracks-table columns of ``rows`` of ``bank`` with states ``x``, ``P`` at ``instant``."""
-    count = len(rows)
+def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, np.ndarray]:
+    """The tracks-table columns (docs/formats.md order) of concatenated instant records."""
+    parts = {name: np.concatenate([r[name] for r in records]) for name in records[0]}
+    x, var = parts["x"], parts["var"]
+    count = len(x)
     nan = np.full(count, np.nan)
     pos = np.arange(dim) * order
     vel = pos + 1
-    columns: dict[str, object] = {"time": np.full(count, instant), "track_id": bank.track_id[rows]}
+    columns: dict[str, np.ndarray] = {"time": parts["time"], "track_id": parts["track_id"]}
     for axis, name in enumerate("xyz"):
         columns[name] = x[:, pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
         columns[name] = x[:, vel[axis]] if axis < dim else nan
     for axis, name in enumerate("xyz"):
-        columns[f"var_{name}"] = P[:, pos[axis], pos[axis]] if axis < dim else nan
+        columns[f"var_{name}"] = var[:, pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
-        columns[f"var_{name}"] = P[:, vel[axis], vel[axis]] if axis < dim else nan
-    # lat/lon are filled by finish_rows, once per drain: one geodetic conversion, not one per instant
-    columns["lat"] = columns["lon"] = nan
-    columns["alt_m"] = nan if dim == 3 else bank.alt_m[rows]
-    columns["status"] = np.where(bank.n_misses[rows] > 0, "coasting", "confirmed")
-    columns["n_updates"] = bank.n_updates[rows]
-    columns["n_misses"] = bank.n_misses[rows]
-    # identity stays integer-coded until finish_rows decodes all rows of a drain at once
-    columns["mode3a"] = bank.mode3a[rows]
-    columns["icao24"] = bank.icao24[rows]
+        columns[f"var_{name}"] = var[:, vel[axis]] if axis < dim else nan
+    z = x[:, pos[2]] if dim == 3 else np.nan_to_num(parts["z_hint"])
+    lat, lon, alt = enu_to_geodetic(x[:, pos[0]], x[:, pos[1]], z, origin.lat, origin.lon, origin.alt_m)
+    columns["lat"], columns["lon"] = lat, lon
+    columns["alt_m"] = alt if dim == 3 else parts["alt_m"]
+    columns["status"] = np.where(parts["n_misses"] > 0, "coasting", "confirmed")
+    columns["n_updates"] = parts["n_updates"]
+    columns["n_misses"] = parts["n_misses"]
+    columns["mode3a"] = decode_mode3a(parts["mode3a"])
+    columns["icao24"] = decode_icao24(parts["icao24"])
     columns["callsign"] = np.full(count, None, dtype=object)
-    columns["iff"] = bank.iff[rows]
+    columns["iff"] = decode_iff(parts["iff"])
     columns["model_probs"] = np.full(count, None, dtype=object)
-    columns[GEODETIC_Z] = x[:, pos[2]] if dim == 3 else np.nan_to_num(bank.z_hint[rows])
-    if full_covariance:
-        n = x.shape[1]
-        iu, ju = np.triu_indices(n)
-        upper = P[:, iu, ju]
-        for k, name in enumerate(covariance_columns(n)):
+    if "upper" in parts:
+        upper = parts["upper"]
+        for k, name in enumerate(covariance_columns(x.shape[1])):
             columns[name] = upper[:, k]
     return columns

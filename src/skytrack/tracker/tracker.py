@@ -23,7 +23,7 @@ from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.output import OutputClock, finish_rows, track_rows
+from skytrack.tracker.output import OutputClock, build_table, instant_record
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
 
@@ -130,15 +130,14 @@ class Tracker:
         if not self.outputs:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         outputs, self.outputs = self.outputs, []
-        columns = {name: np.concatenate([o[name] for o in outputs]) for name in outputs[0]}
-        return pd.DataFrame(finish_rows(columns, self.sensors.origin, self.dim))
+        return pd.DataFrame(build_table(outputs, self.dim, self.order, self.sensors.origin))
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
         rows = np.flatnonzero(self.bank.status == CONFIRMED) if confirmed_only else np.arange(len(self.bank))
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
-        return pd.DataFrame(finish_rows(self._rows_at(t, rows), self.sensors.origin, self.dim))
+        return pd.DataFrame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin))
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
@@ -164,5 +163,4 @@ class Tracker:
     def _rows_at(self, instant: float, rows: np.ndarray) -> dict[str, np.ndarray]:
         bank = self.bank
         predicted = self.filter.predict(bank.state.take(rows), instant - bank.t[rows]).estimate()
-        return track_rows(instant, rows, predicted.x, predicted.P, bank, self.dim, self.order, self.sensors.origin,
-                          self.config.output.full_covariance)
+        return instant_record(instant, rows, predicted.x, predicted.P, bank, self.config.output.full_covariance)
