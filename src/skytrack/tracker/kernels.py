@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from skytrack.models.conversion_kernels import place_2d
+
 
 @njit(cache=True, nogil=True)
 def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
@@ -78,76 +80,6 @@ def _max_eig_sym(M, dim):
             total += abs(M[i, j])
         best = max(best, total)
     return best
-
-
-@njit(cache=True, nogil=True)
-def _place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pos_out, cov_out):
-    """A 2-D plot at a known height: common-frame position and covariance (sphere model)."""
-    a = earth + sensor_alt
-    b = earth + height
-    s = (r * r - (a - b) ** 2) / (4.0 * a * b)
-    consistent = s >= 0.0 and s <= 1.0
-    s = min(max(s, 0.0), 1.0)
-    phi = 2.0 * np.arcsin(np.sqrt(s))
-    sin_phi = np.sin(phi)
-    cos_phi = np.cos(phi)
-    ground = b * sin_phi
-    up = b * cos_phi - a
-    sin_az = np.sin(az)
-    cos_az = np.cos(az)
-    local = np.empty(3)
-    local[0] = ground * sin_az
-    local[1] = ground * cos_az
-    local[2] = up
-    half_sin = max(0.5 * sin_phi, 1e-12)
-    dphi_dr = (r / (2.0 * a * b)) / half_sin
-    dphi_db = (-(b - a) / (2.0 * a * b) - s / b) / half_sin
-    dground_dr = b * cos_phi * dphi_dr
-    dground_db = sin_phi + b * cos_phi * dphi_db
-    J = np.zeros((3, 3))
-    J[0, 0] = dground_dr * sin_az
-    J[0, 1] = ground * cos_az
-    J[0, 2] = dground_db * sin_az
-    J[1, 0] = dground_dr * cos_az
-    J[1, 1] = -ground * sin_az
-    J[1, 2] = dground_db * cos_az
-    J[2, 0] = -b * sin_phi * dphi_dr
-    J[2, 2] = cos_phi - b * sin_phi * dphi_db
-    var = np.empty(3)
-    var[0] = var_r
-    var[1] = var_az
-    var[2] = var_h
-    local_cov = np.zeros((3, 3))
-    if consistent:
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += J[i, k] * var[k] * J[j, k]
-                local_cov[i, j] = acc
-    else:
-        spread = r * r + var_r
-        local_cov[0, 0] = spread
-        local_cov[1, 1] = spread
-        local_cov[2, 2] = var_h + var_r
-    for j in range(3):
-        acc = 0.0
-        for k in range(3):
-            acc += local[k] * rot[k, j]
-        pos_out[j] = acc + origin[j]
-    tmp = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += rot[k, i] * local_cov[k, j]
-            tmp[i, j] = acc
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += tmp[i, k] * rot[k, j]
-            cov_out[i, j] = acc
 
 
 @njit(cache=True, nogil=True)
@@ -293,7 +225,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
         j = out_p[c]
         _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[c], P_pred[c])
         if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
-            _place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
+            place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
                       pair_pos[c], pair_cov[c])
         else:
             pair_pos[c] = plot_pos[j]

@@ -35,6 +35,7 @@ from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.geo.polar import EARTH_RADIUS_M
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
+from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batch
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.models.motion import ConstantVelocityAxis
@@ -139,14 +140,32 @@ class ScanProcessor:
                                    np.empty(len(plots), dtype=bool))
         for s in np.unique(plots.sensor):
             rows = np.flatnonzero(plots.sensor == s)
-            part = convert_plots(self.sensors.sensors[s], plots.range_m[rows], plots.azimuth[rows],
-                                 plots.elevation[rows], altitude[rows], altitude_sigma[rows], plots.platform[rows])
+            sensor = self.sensors.sensors[s]
+            if self.config.association.compiled and not sensor.is_moving:
+                part = self._convert_compiled(s, plots.range_m[rows], plots.azimuth[rows], plots.elevation[rows],
+                                              altitude[rows], altitude_sigma[rows])
+            else:
+                part = convert_plots(sensor, plots.range_m[rows], plots.azimuth[rows], plots.elevation[rows],
+                                     altitude[rows], altitude_sigma[rows], plots.platform[rows])
             converted.position[rows], converted.covariance[rows], converted.consistent[rows] = (
                 part.position, part.covariance, part.consistent)
         inconsistent = int((~converted.consistent).sum())
         if inconsistent:
             self.stats["plots_height_above_slant_range"] += inconsistent
         return converted
+
+    def _convert_compiled(self, s, range_m, azimuth, elevation, altitude, altitude_sigma) -> ConvertedPlots:
+        """:func:`convert_plots` of a ground radar by the compiled kernels."""
+        sensor = self.sensors.sensors[s]
+        if sensor.is_3d:
+            position, covariance, consistent = convert_3d_batch(
+                range_m, azimuth, elevation, sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2,
+                sensor.sigma_elevation_rad**2, self._rotation[s], self._origin[s])
+        else:
+            position, covariance, consistent = convert_2d_batch(
+                range_m, azimuth, altitude, np.square(altitude_sigma), float(sensor.alt_m or 0.0), EARTH_RADIUS_M,
+                sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self._rotation[s], self._origin[s])
+        return ConvertedPlots(position, covariance, consistent)
 
     # ------------------------------------------------------------------ one window
     def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
