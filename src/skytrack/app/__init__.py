@@ -5,6 +5,8 @@
 ``simulate``  :func:`~skytrack.app.simulate.run_simulation` and
               :func:`~skytrack.app.simulate.write_simulation`: a scenario to plots, truth
               and sensors.json
+``evaluate``  :func:`~skytrack.app.evaluate.run_evaluation`: a tracks file against truth,
+              metrics written as JSON
 ``demo``      :func:`~skytrack.app.demo.run_demo`: simulate, track, evaluate and write the
               report folder; :func:`~skytrack.app.demo.acceptance_checks`
 

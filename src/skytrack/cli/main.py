@@ -14,7 +14,6 @@ defaults that mirror :class:`~skytrack.tracker.TrackerConfig` come from
 from __future__ import annotations
 
 import functools
-import json
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -229,22 +228,11 @@ def evaluate(
     start_time: Annotated[Optional[float], typer.Option(help="Time the tracker started (s), for time-to-first-track.")] = None,
 ) -> None:
     """Compare tracks with truth: GOSPA/OSPA, RMSE, NEES, continuity, breaks, swaps, false tracks."""
-    from skytrack.analysis import evaluate as run_evaluation
-    from skytrack.io import read_sensors, read_tracks, read_truth
+    from skytrack.app.evaluate import run_evaluation
 
-    sensor_set = read_sensors(sensors) if sensors else None
-    evaluation = run_evaluation(
-        read_tracks(tracks), read_truth(truth, sensors=sensor_set), cutoff_m=cutoff, order=order,
-        association_gate_m=gate, start_time_s=start_time,
-    )
-    json_path = json_out or tracks.with_name(tracks.name.split(".")[0] + "_metrics.json")
-    _write_json(evaluation.to_dict(), json_path)
-    _print_evaluation(evaluation, json_path)
-
-
-def _write_json(data: dict, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    done = run_evaluation(tracks, truth, json_out=json_out, sensors_path=sensors, cutoff_m=cutoff, order=order,
+                          association_gate_m=gate, start_time_s=start_time)
+    _print_evaluation(done.evaluation, done.json_path)
 
 
 def _print_evaluation(evaluation, json_path: Path | None) -> None:
