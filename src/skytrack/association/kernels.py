@@ -175,7 +175,17 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
     root = np.empty(n_pairs, np.int64)
     for k in range(n_pairs):
         root[k] = _find(parent, ti[k])
-    order = np.argsort(root, kind="mergesort")
+    # pairs grouped by cluster root: a counting sort (stable, linear; numba's argsort is slow)
+    nodes = n_tracks + n_plots
+    start_of = np.zeros(nodes + 1, np.int64)
+    for k in range(n_pairs):
+        start_of[root[k] + 1] += 1
+    for v in range(nodes):
+        start_of[v + 1] += start_of[v]
+    order = np.empty(n_pairs, np.int64)
+    for k in range(n_pairs):
+        order[start_of[root[k]]] = k
+        start_of[root[k]] += 1
     chosen = np.zeros(n_pairs, np.bool_)
     big = np.zeros(n_pairs, np.bool_)
     track_local = np.full(n_tracks, -1, np.int64)

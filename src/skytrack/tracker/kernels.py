@@ -7,8 +7,8 @@ call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from p
 1. each track predicted to its reference time (process-noise factor per track), its position
    spread ``sqrt(lambda_max)``;
 2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x; plots
-   with a spread above the batch's ``wide_quantile`` sweep the tracks from their own side, so
-   they do not widen every track's search;
+   whose spread is above ``wide_factor`` times the batch's mean are checked against every track,
+   so they do not widen every track's search;
 3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
 4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
    track has a Mode C altitude — the plot placed again at that altitude on the sphere model
@@ -84,10 +84,11 @@ def _max_eig_sym(M, dim):
 
 @njit(cache=True, nogil=True)
 def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
-                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, q, ndim, search_scale,
-                  margin_s, wide_quantile, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
-    """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots; the process noise
-    of a track is ``q_big`` times the model's while its psi is set or when ``forced``."""
+                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, plot_order, q, ndim,
+                  search_scale, margin_s, wide_factor, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
+    """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots, ``plot_order`` sorts
+    ``free`` by x; the process noise of a track is ``q_big`` times the model's while its psi is set
+    or when ``forced``."""
     n_tracks = len(tracks)
     n_plots = len(free)
     n = 2 * ndim
@@ -98,8 +99,10 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     scale = np.empty(n_tracks)
     for k in range(n_tracks):
         row = tracks[k]
-        x[k] = x_all[row]
-        P[k] = P_all[row]
+        for i in range(n):
+            x[k, i] = x_all[row, i]
+            for j in range(n):
+                P[k, i, j] = P_all[row, i, j]
         t[k] = t_all[row]
         alt_m[k] = alt_all[row]
         scale[k] = q_big if (forced or psi_all[row]) else 1.0
@@ -112,8 +115,10 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     for j in range(n_plots):
         col = free[j]
         plot_time[j] = plot_time_all[col]
-        plot_pos[j] = plot_pos_all[col]
-        plot_cov[j] = plot_cov_all[col]
+        for a in range(3):
+            plot_pos[j, a] = plot_pos_all[col, a]
+            for b in range(3):
+                plot_cov[j, a, b] = plot_cov_all[col, a, b]
         plot_has_mode_c[j] = np.isfinite(plot_mode_c_all[col])
         plot_range[j] = plot_range_all[col]
         plot_azimuth[j] = plot_azimuth_all[col]
@@ -140,24 +145,29 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             for b in range(ndim):
                 block[a, b] = plot_cov[j, a, b]
         sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
-    # 2. candidates by sort-and-sweep (narrow plots) and brute force (wide plots: spread above
-    #    the batch's wide_quantile, linear interpolation as numpy.quantile)
-    wide_limit = np.inf
-    if n_plots > 20:
-        ranked = np.sort(sigma_p)
-        where = wide_quantile * (n_plots - 1)
-        below = int(np.floor(where))
-        above = min(below + 1, n_plots - 1)
-        wide_limit = ranked[below] + (where - below) * (ranked[above] - ranked[below])
+    # 2. candidates by sort-and-sweep over x (plots in ``plot_order``, sorted by x by the caller);
+    #    plots whose spread is far above the batch's (wide_factor times the mean: plots that
+    #    cannot be placed) are checked against every track instead, so they widen no search
+    mean_sigma = 0.0
+    for j in range(n_plots):
+        mean_sigma += sigma_p[j]
+    wide_limit = wide_factor * mean_sigma / max(n_plots, 1)
     narrow_max = 0.0
+    n_narrow = 0
     for j in range(n_plots):
-        if sigma_p[j] <= wide_limit and sigma_p[j] > narrow_max:
-            narrow_max = sigma_p[j]
-    xs = np.empty(n_plots)
-    for j in range(n_plots):
-        xs[j] = plot_pos[j, 0] if sigma_p[j] <= wide_limit else np.inf
-    order = np.argsort(xs)
-    xs_sorted = xs[order]
+        if sigma_p[j] <= wide_limit:
+            n_narrow += 1
+            if sigma_p[j] > narrow_max:
+                narrow_max = sigma_p[j]
+    order = np.empty(n_narrow, np.int64)
+    xs_sorted = np.empty(n_narrow)
+    m = 0
+    for s in range(n_plots):
+        j = plot_order[s]
+        if sigma_p[j] <= wide_limit:
+            order[m] = j
+            xs_sorted[m] = plot_pos[j, 0]
+            m += 1
     capacity = 2 * (n_tracks + n_plots) + 16
     out_t = np.empty(capacity, np.int64)
     out_p = np.empty(capacity, np.int64)
@@ -181,22 +191,10 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 out_t[count] = k
                 out_p[count] = j
                 count += 1
-    # wide plots search the tracks, sorted by x, from their own side
-    track_order = np.argsort(ref_pos[:, 0])
-    track_xs = ref_pos[track_order, 0]
-    sigma_t_max = 0.0
-    margin_max = 0.0
-    for k in range(n_tracks):
-        sigma_t_max = max(sigma_t_max, sigma_t[k])
-        margin_max = max(margin_max, margin[k])
     for j in range(n_plots):
         if sigma_p[j] <= wide_limit:
             continue
-        reach = search_scale * (sigma_p[j] + sigma_t_max) + margin_max
-        lo = np.searchsorted(track_xs, plot_pos[j, 0] - reach)
-        hi = np.searchsorted(track_xs, plot_pos[j, 0] + reach, side="right")
-        for s in range(lo, hi):
-            k = track_order[s]
+        for k in range(n_tracks):
             radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
             d2 = 0.0
             for a in range(ndim):
@@ -210,29 +208,34 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 out_t[count] = k
                 out_p[count] = j
                 count += 1
-    # 3.-5. exact gate of every candidate at its plot's time
+    # 3.-5. exact gate of every candidate at its plot's time; pairs inside are written to the
+    #       next free slot ``m`` (compaction as we go, no fancy indexing afterwards)
     x_pred = np.empty((count, n))
     P_pred = np.empty((count, n, n))
     pair_pos = np.empty((count, 3))
     pair_cov = np.empty((count, 3, 3))
     L = np.zeros((count, ndim, ndim))
     d2_out = np.empty(count)
-    inside = np.zeros(count, np.bool_)
+    kept_t = np.empty(count, np.int64)
+    kept_p = np.empty(count, np.int64)
     S = np.empty((ndim, ndim))
     w = np.empty(ndim)
+    m = 0
     for c in range(count):
         k = out_t[c]
         j = out_p[c]
-        _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[c], P_pred[c])
+        _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[m], P_pred[m])
         if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
             place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
-                      pair_pos[c], pair_cov[c])
+                     pair_pos[m], pair_cov[m])
         else:
-            pair_pos[c] = plot_pos[j]
-            pair_cov[c] = plot_cov[j]
+            for a in range(3):
+                pair_pos[m, a] = plot_pos[j, a]
+                for b in range(3):
+                    pair_cov[m, a, b] = plot_cov[j, a, b]
         for a in range(ndim):
             for b in range(ndim):
-                S[a, b] = P_pred[c, 2 * a, 2 * b] + pair_cov[c, a, b]
+                S[a, b] = P_pred[m, 2 * a, 2 * b] + pair_cov[m, a, b]
         for a in range(ndim):
             for b in range(a + 1, ndim):
                 mean = 0.5 * (S[a, b] + S[b, a])
@@ -243,31 +246,31 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             for b in range(a + 1):
                 acc = S[a, b]
                 for l in range(b):
-                    acc -= L[c, a, l] * L[c, b, l]
+                    acc -= L[m, a, l] * L[m, b, l]
                 if a == b:
                     if acc <= 0.0:
                         ok = False
                         break
-                    L[c, a, a] = np.sqrt(acc)
+                    L[m, a, a] = np.sqrt(acc)
                 else:
-                    L[c, a, b] = acc / L[c, b, b]
+                    L[m, a, b] = acc / L[m, b, b]
             if not ok:
                 break
         if not ok:
-            d2_out[c] = np.nan
-            continue
+            continue  # S not positive definite: the pair cannot be gated
         total = 0.0
         for a in range(ndim):
-            acc = pair_pos[c, a] - x_pred[c, 2 * a]
+            acc = pair_pos[m, a] - x_pred[m, 2 * a]
             for l in range(a):
-                acc -= L[c, a, l] * w[l]
-            w[a] = acc / L[c, a, a]
+                acc -= L[m, a, l] * w[l]
+            w[a] = acc / L[m, a, a]
             total += w[a] * w[a]
-        d2_out[c] = total
-        inside[c] = total <= gate
-    keep = np.flatnonzero(inside)
-    return (out_t[keep], out_p[keep], d2_out[keep], x_pred[keep], P_pred[keep], pair_pos[keep], pair_cov[keep],
-            L[keep], count)
+        if total <= gate:
+            d2_out[m] = total
+            kept_t[m] = k
+            kept_p[m] = j
+            m += 1
+    return (kept_t[:m], kept_p[:m], d2_out[:m], x_pred[:m], P_pred[:m], pair_pos[:m], pair_cov[:m], L[:m], count)
 
 
 @njit(cache=True, nogil=True)

@@ -47,6 +47,8 @@ from skytrack.tracker.window_kernels import expect_rotating, record_and_manage
 
 #: search-radius safety factor over the exact Mahalanobis bound
 RADIUS_FACTOR = 1.05
+#: a plot whose spread exceeds this multiple of the window's mean is searched from its own side
+WIDE_PLOT_FACTOR = 5.0
 
 
 @dataclass
@@ -310,8 +312,9 @@ class ScanProcessor:
         ti_local, pj_local, d2, x_pred, P_pred, position, covariance, chol, n_candidates = gate_stage_cv(
             tracks, free, storage.x, storage.P, bank.column_storage["t"], bank.column_storage["alt_m"],
             storage.psi if psi_enabled else self._no_psi, q_big, manoeuvre, t_ref, plots.time, converted.position,
-            converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scale,
-            margin_s, 0.95, self.scorer.gate(dim), replace_height,
+            converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+            np.argsort(converted.position[free, 0], kind="stable"), self.fused_q, dim, self.search_scale,
+            margin_s, WIDE_PLOT_FACTOR, self.scorer.gate(dim), replace_height,
             float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
             sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
         )
