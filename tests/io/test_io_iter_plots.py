@@ -71,3 +71,27 @@ def test_values_in_another_unit_give_a_warning(tmp_path):
         read_plots(tmp_path / "plots.parquet")
     messages = [str(w.message) for w in caught]
     assert any("kilometres" in m for m in messages) and any("radians" in m for m in messages)
+
+
+@pytest.mark.parametrize("suffix", ["parquet", "csv"])
+def test_plot_batches_are_the_parsed_plots_in_si_units(tmp_path, suffix):
+    """iter_plot_batches parses each validated chunk once: azimuth in radians, Mode C in
+    metres, Mode 3/A as its octal value, rows numbered over the whole file."""
+    from skytrack.core.plots import PlotBatch
+    from skytrack.geo.sensors import Origin, Sensor, SensorSet
+    from skytrack.io import iter_plot_batches
+
+    sensors = SensorSet(Origin(48.0, 2.0, 0.0), [Sensor("radar1", type="radar-2d", x=0.0, y=0.0,
+                                                        sigma_range_m=40.0, sigma_azimuth_deg=0.07,
+                                                        scan_period_s=4.0)])
+    plots = _plots(300)
+    plots["mode_c_ft"] = 10000.0
+    plots["mode3a"] = "7000"
+    path = write_plots(plots, tmp_path / f"plots.{suffix}", sensors=sensors)
+    batches = list(iter_plot_batches(path, sensors, chunk_rows=128))
+    assert [len(b) for b in batches] == [128, 128, 44]
+    whole = PlotBatch.concat(batches)
+    np.testing.assert_array_equal(whole.row, np.arange(300))
+    np.testing.assert_allclose(whole.azimuth, np.radians(plots["azimuth_deg"]), rtol=1e-12)
+    np.testing.assert_allclose(whole.mode_c_m, 10000.0 * 0.3048)
+    assert (whole.mode3a == 0o7000).all() and (whole.sensor == 0).all()

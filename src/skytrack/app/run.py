@@ -70,13 +70,13 @@ def run_tracking(
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
-    Plots are read and validated ``chunk_rows`` at a time (Parquet and CSV are both
-    streamed), fed to the tracker, and the tracks it emits are appended to ``out`` after
+    Plots are read, validated and parsed once into plot batches ``chunk_rows`` at a time
+    (Parquet and CSV are both streamed), fed to the tracker, and the tracks it emits are appended to ``out`` after
     every chunk, so memory is bounded by one chunk plus the live tracks.  With
     ``lenient=True`` malformed plot rows are skipped and counted in ``summary.report``.
     ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.
     """
-    from skytrack.io import ReadReport, iter_plots, read_sensors
+    from skytrack.io import ReadReport, iter_plot_batches, read_sensors
     from skytrack.io.tables import count_rows
     from skytrack.io.tracks import TrackWriter
     from skytrack.tracker import Tracker, TrackerConfig
@@ -94,7 +94,7 @@ def run_tracking(
     plots_read = 0
     report_progress("track", 0, total)
     with TrackWriter(out) as writer:
-        for chunk in iter_plots(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
+        for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
             tracker.feed(chunk, source=str(plots_path))
             writer.write(tracker.drain())
             plots_read += len(chunk)

@@ -62,12 +62,13 @@ class PlotBatch:
 
     @staticmethod
     def from_frame(frame: pd.DataFrame, sensor_names: list[str] | None, is_3d: list[bool] | None = None,
-                   source: str = "plots", first_row: int = 0) -> "PlotBatch":
-        """Convert a FORMATS.md plots table; bad values raise ValueError naming the row and column.
+                   source: str = "plots", first_row: int = 0, check: bool = True) -> "PlotBatch":
+        """Convert a plots table (docs/formats.md); bad values raise ValueError naming the row and column.
 
         ``first_row`` is the row number of the frame's first row in the whole input (chunks).
-        Checked: required columns, unknown sensors, non-finite times, ranges and azimuths,
-        negative ranges, 3-D radar plots without elevation, malformed identity codes.
+        Checked: required columns, unknown sensors, malformed identity codes and, unless
+        ``check`` is False (the io readers have validated the table already), non-finite
+        times, ranges and azimuths, negative ranges and 3-D radar plots without elevation.
         """
         count = len(frame)
         missing = [c for c in ("time", "sensor", "range_m", "azimuth_deg") if c not in frame.columns]
@@ -102,6 +103,8 @@ class PlotBatch:
             platform=np.column_stack([numeric(c) for c in PLATFORM_COLUMNS]) if count else np.zeros((0, 6)),
             row=first_row + np.arange(count, dtype=np.int64),
         )
+        if not check:
+            return batch
         problems = [
             ("time", ~np.isfinite(batch.time), "value is not a finite number"),
             ("range_m", ~np.isfinite(batch.range_m), "value is not a finite number"),

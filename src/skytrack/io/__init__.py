@@ -12,7 +12,7 @@ columns in FORMATS.md order followed by the extras, and create parent directorie
 
 from skytrack.io.adsb import read_adsb, write_adsb
 from skytrack.io.errors import InputError, InputWarning, ReadReport, SkippedRows
-from skytrack.io.plots import iter_plots, read_plots, write_plots
+from skytrack.io.plots import iter_plot_batches, iter_plots, read_plots, write_plots
 from skytrack.io.schema import (
     ADSB_COLUMNS,
     ADSB_SCHEMA,
@@ -37,6 +37,7 @@ from skytrack.io.tracks import read_tracks, write_tracks
 from skytrack.io.truth import DEFAULT_MAX_GAP_S, read_truth, write_truth
 
 __all__ = [
+    "iter_plot_batches",
     "iter_plots",
     "read_plots",
     "write_plots",

@@ -24,6 +24,7 @@ from typing import Literal, overload
 import numpy as np
 import pandas as pd
 
+from skytrack.core.plots import PlotBatch
 from skytrack.geo.sensors import SensorSet
 from skytrack.io.checks import (
     RowChecks,
@@ -259,6 +260,19 @@ def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch
             yield plots
     _warn_units(stream, report)
     emit_warnings(report, lenient)
+
+
+def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None,
+                      report=None):
+    """:func:`iter_plots` as :class:`~skytrack.core.plots.PlotBatch` chunks: parsed once, in SI
+    units with integer identity codes, ready for the tracker (which does not check them again).
+    Row numbers count the plots kept (what the tracker's messages refer to)."""
+    names = sensors.names
+    is_3d = [s.is_3d for s in sensors.sensors]
+    first_row = 0
+    for frame in iter_plots(path, sensors, lenient, chunk_rows=chunk_rows, epoch_utc=epoch_utc, report=report):
+        yield PlotBatch.from_frame(frame, names, is_3d, str(path), first_row=first_row, check=False)
+        first_row += len(frame)
 
 
 def write_plots(df: pd.DataFrame, path: str | Path, *, sensors: SensorSet | None = None) -> Path:
