@@ -145,6 +145,7 @@ def _print_simulation_summary(result, paths: dict) -> None:
 @app.command()
 @reports_input_errors
 def track(
+    ctx: typer.Context,
     plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
     sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv).")],
@@ -165,19 +166,33 @@ def track(
     full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
     chunk_rows: Annotated[int, typer.Option(help="Plots read, validated and tracked per chunk (bounds memory, Parquet and CSV alike).")] = defaults.CHUNK_ROWS,
+    filter_kind: Annotated[Optional[str], typer.Option("--filter", help="Filter family: kalman-psi (default: Kalman with the manoeuvre switch), kalman, imm.")] = None,
+    config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
     from skytrack.app.run import run_tracking
     from skytrack.tracker import TrackerConfig
 
     confirm_m, confirm_n = _parse_confirm(confirm)
-    config = TrackerConfig(
-        model=model, cv_q=q, singer_tau_s=tau, singer_sigma_a=sigma_a, discretization=discretization,
-        manoeuvre_q_scale=manoeuvre_scale, p_gate=p_gate, gate_threshold=gate_threshold,
-        confirm_m=confirm_m, confirm_n=confirm_n, delete_misses=delete_misses, init=init,
-        tracking_dim=tracking_dim, default_altitude_m=default_altitude, output_interval_s=output_interval,
-        full_covariance=full_covariance,
-    )
+    options = {
+        "model": model, "cv_q": q, "singer_tau_s": tau, "singer_sigma_a": sigma_a, "discretization": discretization,
+        "manoeuvre_q_scale": manoeuvre_scale, "p_gate": p_gate, "gate_threshold": gate_threshold,
+        "confirm_m": confirm_m, "confirm_n": confirm_n, "delete_misses": delete_misses, "init": init,
+        "tracking_dim": tracking_dim, "default_altitude_m": default_altitude, "output_interval_s": output_interval,
+        "full_covariance": full_covariance,
+    }
+    if config_file is None:
+        config = TrackerConfig(**options)
+    else:
+        # the file is the base; only options typed on the command line override it
+        parameter = {"cv_q": "q", "singer_tau_s": "tau", "singer_sigma_a": "sigma_a", "manoeuvre_q_scale": "manoeuvre_scale",
+                     "confirm_m": "confirm", "confirm_n": "confirm", "default_altitude_m": "default_altitude",
+                     "output_interval_s": "output_interval"}
+        given = {name: value for name, value in options.items()
+                 if getattr(ctx.get_parameter_source(parameter.get(name, name)), "name", "") == "COMMANDLINE"}
+        config = TrackerConfig.from_file(config_file).replace(**given)
+    if filter_kind is not None:
+        config = config.replace(filter_kind=filter_kind)
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:

@@ -116,9 +116,10 @@ FLAT_NAMES: dict[str, tuple[str, str]] = {
        for f in dataclasses.fields(cls) if f.name != "options"},
     "init": ("initiation", "method"),
     "init_sigma_v": ("initiation", "sigma_v"),
+    "filter_kind": ("filter", "kind"),
 }
-FLAT_NAMES.pop("method")
-FLAT_NAMES.pop("sigma_v")
+for _section_field in ("method", "sigma_v", "kind"):
+    FLAT_NAMES.pop(_section_field)
 
 
 class TrackerConfig:
@@ -145,6 +146,10 @@ class TrackerConfig:
                 value = dataclasses.replace(base, **by_section[name]) if by_section[name] else base
             object.__setattr__(self, name, value)
         self.extra = dict(extra or {})
+
+    def replace(self, **flat) -> "TrackerConfig":
+        """A copy with the given flat settings changed (the command line's overrides of a file)."""
+        return TrackerConfig(**{name: getattr(self, name) for name in SECTIONS}, extra=self.extra, **flat)
 
     def __getattr__(self, name: str):
         if name in FLAT_NAMES:
