@@ -163,23 +163,30 @@ def _iff_codes(frame: pd.DataFrame, source: str, first_row: int) -> np.ndarray:
     return out
 
 
-def decode_mode3a(codes: np.ndarray) -> np.ndarray:
+def decode_mode3a(codes: np.ndarray):
     return _decode(codes, "{:04o}")
 
 
-def decode_icao24(codes: np.ndarray) -> np.ndarray:
+def decode_icao24(codes: np.ndarray):
     return _decode(codes, "{:06x}")
 
 
-def decode_iff(codes: np.ndarray) -> np.ndarray:
-    table = np.array([*IFF_VALUES, None], dtype=object)
-    return table[np.where(codes < 0, len(IFF_VALUES), codes)]
+def decode_iff(codes: np.ndarray):
+    return _decode(codes, None)
 
 
-def _decode(codes: np.ndarray, form: str) -> np.ndarray:
-    out = np.full(len(codes), None, dtype=object)
-    present = codes >= 0
-    if present.any():
-        uniques, inverse = np.unique(codes[present], return_inverse=True)
-        out[present] = np.array([form.format(int(c)) for c in uniques], dtype=object)[inverse]
-    return out
+def _decode(codes: np.ndarray, form: str | None):
+    """Text of integer codes as a pandas string array (missing where the code is -1).
+
+    Each distinct code is formatted once (pyarrow dictionary encoding), so decoding a drain's
+    rows costs a hash pass, not a Python call per row.
+    """
+    import pyarrow as pa
+
+    encoded = pa.array(np.asarray(codes, dtype=np.int32)).dictionary_encode()
+    values = encoded.dictionary.to_numpy().tolist()
+    if form is None:
+        texts = [IFF_VALUES[c] if c >= 0 else None for c in values]
+    else:
+        texts = [form.format(c) if c >= 0 else None for c in values]
+    return pd.array(pa.array(texts, type=pa.string()).take(encoded.indices), dtype="str")

@@ -11,7 +11,9 @@ TRACK_OUTPUT_COLUMNS = [
     "mode3a", "icao24", "callsign", "iff", "model_probs",
 ]
 INTEGER_COLUMNS = {"track_id", "n_updates", "n_misses"}
-TEXT_COLUMNS = {"mode3a", "icao24", "callsign", "iff", "model_probs"}
+#: text columns the tracker fills (pandas "str" dtype) and those it leaves empty (object, all None)
+TEXT_COLUMNS = {"status", "mode3a", "icao24", "iff"}
+EMPTY_COLUMNS = {"callsign", "model_probs"}
 
 
 def covariance_columns(state_dim: int) -> list[str]:
@@ -22,8 +24,8 @@ def covariance_columns(state_dim: int) -> list[str]:
 def empty_tracks(full_covariance: bool, state_dim: int) -> pd.DataFrame:
     """A tracks table without rows, with the dtypes of a full one (so chunks concatenate)."""
     columns = {
-        c: pd.Series(dtype="int64" if c in INTEGER_COLUMNS else object if c in TEXT_COLUMNS
-                     else "str" if c == "status" else float)
+        c: pd.Series(dtype="int64" if c in INTEGER_COLUMNS else "str" if c in TEXT_COLUMNS
+                     else object if c in EMPTY_COLUMNS else float)
         for c in TRACK_OUTPUT_COLUMNS
     }
     if full_covariance:

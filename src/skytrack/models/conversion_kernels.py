@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pos_out, cov_out):
     """A 2-D plot at a known height: common-frame position and covariance (sphere model)."""
     a = earth + sensor_alt
@@ -86,7 +86,7 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     return consistent
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def convert_2d_batch(r, az, height, var_h, sensor_alt, earth, var_r, var_az, rot, origin):
     count = len(r)
     position = np.empty((count, 3))
@@ -98,7 +98,7 @@ def convert_2d_batch(r, az, height, var_h, sensor_alt, earth, var_r, var_az, rot
     return position, covariance, consistent
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def convert_3d_batch(r, az, el, var_r, var_az, var_el, rot, origin):
     count = len(r)
     position = np.empty((count, 3))
@@ -133,7 +133,7 @@ def convert_3d_batch(r, az, el, var_r, var_az, var_el, rot, origin):
     return position, covariance, consistent
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rotate(local, J, var, rot, origin, local_cov, tmp, pos_out, cov_out):
     for i in range(3):
         for j in range(3):

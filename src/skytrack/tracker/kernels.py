@@ -28,7 +28,7 @@ from numba import njit
 from skytrack.models.conversion_kernels import place_2d
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
     step = abs(dt)
     f = dt  # F(|dt|)^-1 = F(-|dt|) for constant velocity
@@ -66,7 +66,7 @@ def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
             P_out[j, i] = mean
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _max_eig_sym(M, dim):
     if dim == 2:
         a = M[0, 0]
@@ -82,7 +82,7 @@ def _max_eig_sym(M, dim):
     return best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
                   plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, plot_order, q, ndim,
                   search_scale, margin_s, wide_factor, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
@@ -273,14 +273,14 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     return (kept_t[:m], kept_p[:m], d2_out[:m], x_pred[:m], P_pred[:m], pair_pos[:m], pair_cov[:m], L[:m], count)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _grow(values, capacity):
     out = np.empty(capacity, values.dtype)
     out[: len(values)] = values
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_cov, ndim, manoeuvre, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
                     z_hint, alt_m, status, mode3a, icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s,

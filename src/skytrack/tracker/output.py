@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
 from skytrack.core.plots import decode_icao24, decode_iff, decode_mode3a
 from skytrack.core.tracks import covariance_columns
@@ -83,6 +84,12 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
     return record
 
 
+def _status_text(coasting: np.ndarray):
+    import pyarrow as pa
+
+    return pd.array(pa.array(["confirmed", "coasting"]).take(pa.array(coasting.astype(np.int8))), dtype="str")
+
+
 def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, np.ndarray]:
     """The tracks-table columns (docs/formats.md order) of concatenated instant records."""
     parts = {name: np.concatenate([r[name] for r in records]) for name in records[0]}
@@ -104,7 +111,7 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     lat, lon, alt = enu_to_geodetic(x[:, pos[0]], x[:, pos[1]], z, origin.lat, origin.lon, origin.alt_m)
     columns["lat"], columns["lon"] = lat, lon
     columns["alt_m"] = alt if dim == 3 else parts["alt_m"]
-    columns["status"] = np.where(parts["n_misses"] > 0, "coasting", "confirmed")
+    columns["status"] = _status_text(parts["n_misses"] > 0)
     columns["n_updates"] = parts["n_updates"]
     columns["n_misses"] = parts["n_misses"]
     columns["mode3a"] = decode_mode3a(parts["mode3a"])

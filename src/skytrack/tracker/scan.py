@@ -24,6 +24,7 @@ import numpy as np
 
 from skytrack.association.kernels import sweep_candidates
 from skytrack.association.base import Pairs
+from skytrack.association.gnn import MAX_DENSE_CLUSTER, sparse_assignment
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.registry import build_assigner, build_scorer
 from skytrack.core.linalg import max_eigenvalue_sym
@@ -41,7 +42,8 @@ from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
+from skytrack.tracker.kernels import update_write_cv
+from skytrack.tracker.stage_kernel import stage_cv
 from skytrack.tracker.schedule import SECTOR_MARGIN, Schedule
 from skytrack.tracker.window_kernels import expect_rotating, record_and_manage
 
@@ -298,49 +300,52 @@ class ScanProcessor:
         return ti, pj
 
     def _associate_fused(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
-        """:meth:`_associate` with the gate in one compiled call (:func:`skytrack.tracker.kernels.gate_stage_cv`)."""
+        """:meth:`_associate` in one compiled call (:func:`skytrack.tracker.stage_kernel.stage_cv`)."""
         bank = self.bank
         dim = self.dim
         sensor = self.sensors.sensors[s]
         schedule = self.schedule
-        empty = np.zeros(0, np.intp)
         storage = bank.storage
+        columns = bank.column_storage
         psi_enabled = isinstance(storage, ManoeuvreState)
-        q_big = float(self.filter.scale) if psi_enabled else 1.0
+        if psi_enabled:
+            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
+            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
+        else:
+            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
+            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
         margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
         replace_height = not sensor.is_3d
-        ti_local, pj_local, d2, x_pred, P_pred, position, covariance, chol, n_candidates = gate_stage_cv(
-            tracks, free, storage.x, storage.P, bank.column_storage["t"], bank.column_storage["alt_m"],
-            storage.psi if psi_enabled else self._no_psi, q_big, manoeuvre, t_ref, plots.time, converted.position,
-            converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-            np.argsort(converted.position[free, 0], kind="stable"), self.fused_q, dim, self.search_scale,
-            margin_s, WIDE_PLOT_FACTOR, self.scorer.gate(dim), replace_height,
+        two_point = self.config.initiation.method == "two-point"
+        miss = self.scorer.gate(dim + 1)
+        rows, plot_rows, candidates, *big = stage_cv(
+            tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
+            plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+            np.argsort(converted.position[free, 0], kind="stable"), self.fused_q, dim, self.search_scale, margin_s,
+            WIDE_PLOT_FACTOR, self.scorer.gate(dim), replace_height,
             float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
             sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
+            miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg, filter_updates,
+            columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"],
+            columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
         )
-        self.stats["candidate_pairs"] += n_candidates
-        if len(ti_local) == 0:
-            return empty, empty
-        ti, pj = tracks[ti_local], free[pj_local]
-        chosen = self.assigner.assign_gated(ti, pj, d2, np.full(len(bank), self.scorer.gate(dim + 1)), len(bank),
-                                            len(plots))
-        if len(chosen) == 0:
-            return empty, empty
-        ti, pj = ti[chosen], pj[chosen]
-        columns = bank.column_storage
-        dummy_flags, dummy_values, dummy_counts = np.zeros(1, bool), np.zeros(1), np.zeros(1, np.int64)
-        update_write_cv(
-            ti, pj, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen], covariance[chosen],
-            dim, manoeuvre, psi_enabled, getattr(self.filter, "on", 0.0), getattr(self.filter, "off", 0.0),
-            getattr(self.filter, "memory", 0.0), self.config.initiation.method == "two-point", storage.x, storage.P,
-            storage.psi if psi_enabled else dummy_flags, storage.nis_avg if psi_enabled else dummy_values,
-            storage.n_updates if psi_enabled else dummy_counts, columns["t"], columns["n_updates"],
-            columns["n_misses"], columns["z_hint"], columns["alt_m"], columns["status"], columns["mode3a"],
-            columns["icao24"], columns["iff"], plots.time, plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
-        )
+        self.stats["candidate_pairs"] += candidates
+        big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = big
+        if len(big_t):
+            # clusters too large for the dense solver: one sparse matching, then their updates
+            chosen = sparse_assignment(big_t, big_p, d2, np.full(len(tracks), miss))
+            extra_rows, extra_plots = tracks[big_t[chosen]], free[big_p[chosen]]
+            update_write_cv(
+                extra_rows, extra_plots, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
+                covariance[chosen], dim, manoeuvre, psi_enabled, on, off, memory, two_point, storage.x, storage.P, psi,
+                nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"], columns["z_hint"],
+                columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"], columns["iff"], plots.time,
+                plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+            )
+            rows, plot_rows = np.concatenate([rows, extra_rows]), np.concatenate([plot_rows, extra_plots])
         if manoeuvre:
-            self.stats["manoeuvre_gate_hits"] += len(ti)
-        return ti, pj
+            self.stats["manoeuvre_gate_hits"] += len(rows)
+        return rows, plot_rows
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
         dim = self.dim
