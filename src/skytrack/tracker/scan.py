@@ -38,14 +38,14 @@ from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batch
 from skytrack.models.converted import ConvertedPositionModel
-from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
+from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.kernels import update_write_cv
 from skytrack.tracker.stage_kernel import stage_cv
 from skytrack.tracker.schedule import SECTOR_MARGIN, Schedule
-from skytrack.tracker.window_kernels import expect_rotating, record_and_manage
+from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
 
 #: search-radius safety factor over the exact Mahalanobis bound
 RADIUS_FACTOR = 1.05
@@ -127,6 +127,7 @@ class ScanProcessor:
         self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
         self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
         self._no_psi = np.zeros(1, dtype=bool)
+        self._standard_columns = set(STANDARD_COLUMNS)
         # coverage of every radar, for "no plot is due outside coverage" (Schedule.in_any_coverage)
         radars = [r for r in sensors.sensors if r.is_radar]
         self._cover_all = any(not r.max_range_m or r.is_moving for r in radars)
@@ -210,6 +211,9 @@ class ScanProcessor:
             if not compiled_window:
                 self.lifecycle.record_events(bank, hit, expected, w_end)
         self.stats["plots_assigned"] += int(plot_used.sum())
+        if compiled_window and set(bank.column_storage) == self._standard_columns:
+            self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+            return
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         if compiled_window:
             self._manage_compiled(hit, expected, w_end)
@@ -227,6 +231,33 @@ class ScanProcessor:
                                float(schedule.period[s]), self._rotation[s], self._origin[s],
                                float(sensor.max_range_m or 0.0), self._cover_xy, self._cover_r2, self._cover_all,
                                SECTOR_MARGIN)
+
+    def _initiate_manage_compiled(self, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
+                                  hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+        """Initiation, events, life cycle and compaction in one compiled call (standard columns only)."""
+        bank = self.bank
+        bank.reserve(len(bank) + len(new))
+        storage, columns = bank.storage, bank.column_storage
+        with_psi = isinstance(storage, ManoeuvreState)
+        cfg = self.config.lifecycle
+        size, misses, confirmed, hopeless, lost = initiate_manage_cv(
+            len(bank), new, plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.mode3a,
+            plots.mode_s, plots.iff, self.next_track_id, self.config.initiation.sigma_v, self.dim, with_psi, hit,
+            expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
+            storage.x, storage.P, storage.psi if with_psi else self._no_psi,
+            storage.nis_avg if with_psi else np.zeros(1), storage.n_updates if with_psi else np.zeros(1, np.int64),
+            columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
+            columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
+            columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
+            columns["iff"],
+        )
+        bank.size = size
+        self.next_track_id += len(new)
+        self.stats["tracks_started"] += len(new)
+        self.stats["misses"] += misses
+        self.stats["tracks_confirmed"] += confirmed
+        self.stats["tentative_dropped"] += hopeless
+        self.stats["tracks_deleted"] += lost
 
     def _manage_compiled(self, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
         bank = self.bank

@@ -19,6 +19,7 @@ from skytrack.core.plots import PlotBatch
 from skytrack.core.tracks import TRACK_OUTPUT_COLUMNS, empty_tracks
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots
+from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.initiation import Initiator
@@ -26,6 +27,7 @@ from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.output import OutputClock, build_table, instant_record
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
+from skytrack.tracker.window_kernels import report_cv
 
 __all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker"]
 
@@ -156,9 +158,35 @@ class Tracker:
     def _emit_until(self, limit: float) -> None:
         for instant in self.clock.instants_until(limit):
             self.stats["output_instants"] += 1
+            if self.scan.fused_q is not None:
+                record = self._report_compiled(instant)
+                if record is not None:
+                    self.outputs.append(record)
+                continue
             rows = np.flatnonzero(self.bank.status == CONFIRMED)
             if len(rows):
                 self.outputs.append(self._rows_at(instant, rows))
+
+    def _report_compiled(self, instant: float) -> dict[str, np.ndarray] | None:
+        """:meth:`_rows_at` of the confirmed tracks for the fused constant-velocity filters, compiled."""
+        bank = self.bank
+        storage, columns = bank.storage, bank.column_storage
+        with_psi = isinstance(storage, ManoeuvreState)
+        full = self.config.output.full_covariance
+        (rows, x, var, upper, track_id, n_updates, n_misses, alt_m, z_hint, mode3a, icao24,
+         iff) = report_cv(instant, len(bank), storage.x, storage.P, columns["t"], storage.psi if with_psi else
+                          self.scan._no_psi, with_psi, self.scan.fused_q,
+                          float(self.filter.scale) if with_psi else 1.0, full, columns["status"], columns["track_id"],
+                          columns["n_updates"], columns["n_misses"], columns["alt_m"], columns["z_hint"],
+                          columns["mode3a"], columns["icao24"], columns["iff"])
+        if len(rows) == 0:
+            return None
+        record = {"time": np.full(len(rows), instant), "track_id": track_id, "x": x, "var": var,
+                  "n_updates": n_updates, "n_misses": n_misses, "alt_m": alt_m, "z_hint": z_hint,
+                  "mode3a": mode3a, "icao24": icao24, "iff": iff}
+        if full:
+            record["upper"] = upper
+        return record
 
     def _rows_at(self, instant: float, rows: np.ndarray) -> dict[str, np.ndarray]:
         bank = self.bank

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from skytrack.tracker.kernels import _predict_cv_row
+
 _BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
 
 
@@ -125,3 +127,121 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
             keep[k] = False
             lost += 1
     return keep, misses, confirmed, hopeless, lost
+
+
+@njit(cache=True, nogil=True)
+def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c, plot_mode3a, plot_mode_s,
+                       plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
+                       max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
+                       n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff):
+    """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
+    one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
+    window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
+    kept rows (:meth:`~skytrack.tracker.bank.TrackBank.keep`).  The arrays must have room for
+    ``size + len(new_plots)`` rows; without ``with_psi`` the psi arrays are not touched.
+    Returns the new size and the counts (misses, confirmed, hopeless, lost)."""
+    n = 2 * dim
+    for c in range(len(new_plots)):
+        j = new_plots[c]
+        k = size + c
+        for i in range(n):
+            x[k, i] = 0.0
+            for l in range(n):
+                P[k, i, l] = 0.0
+        for a in range(dim):
+            x[k, 2 * a] = plot_pos[j, a]
+            for b in range(dim):
+                P[k, 2 * a, 2 * b] = plot_cov[j, a, b]
+            P[k, 2 * a + 1, 2 * a + 1] = sigma_v * sigma_v
+        if with_psi:
+            psi[k] = False
+            nis_avg[k] = 0.0
+            filter_updates[k] = 0
+        t[k] = plot_time[j]
+        track_id[k] = first_id + c
+        status[k] = 0
+        hit_bits[k] = 1
+        n_events[k] = 1
+        n_updates[k] = 1
+        n_misses[k] = 0
+        created[k] = plot_time[j]
+        last_event[k] = 0.0
+        confirmed_at[k] = np.nan
+        alt_m[k] = plot_mode_c[j]
+        z_hint[k] = plot_pos[j, 2]
+        mode3a[k] = plot_mode3a[j]
+        icao24[k] = plot_mode_s[j]
+        iff[k] = plot_iff[j]
+    rows = size + len(new_plots)
+    keep, misses, confirmed, hopeless, lost = record_and_manage(
+        hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t[:rows], status[:rows],
+        hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows])
+    m = 0
+    for k in range(rows):
+        if not keep[k]:
+            continue
+        if m != k:
+            for i in range(n):
+                x[m, i] = x[k, i]
+                for l in range(n):
+                    P[m, i, l] = P[k, i, l]
+            if with_psi:
+                psi[m] = psi[k]
+                nis_avg[m] = nis_avg[k]
+                filter_updates[m] = filter_updates[k]
+            t[m] = t[k]
+            track_id[m] = track_id[k]
+            status[m] = status[k]
+            hit_bits[m] = hit_bits[k]
+            n_events[m] = n_events[k]
+            n_updates[m] = n_updates[k]
+            n_misses[m] = n_misses[k]
+            created[m] = created[k]
+            last_event[m] = last_event[k]
+            confirmed_at[m] = confirmed_at[k]
+            alt_m[m] = alt_m[k]
+            z_hint[m] = z_hint[k]
+            mode3a[m] = mode3a[k]
+            icao24[m] = icao24[k]
+            iff[m] = iff[k]
+        m += 1
+    return m, misses, confirmed, hopeless, lost
+
+
+@njit(cache=True, nogil=True)
+def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, status, track_id, n_updates,
+              n_misses, alt_m, z_hint, mode3a, icao24, iff):
+    """One output instant of a constant-velocity Gaussian bank: every confirmed track predicted to
+    ``instant`` (the filter's process noise, psi included) and its record columns
+    (:func:`skytrack.tracker.output.instant_record`)."""
+    n = x.shape[1]
+    count = 0
+    for k in range(size):
+        if status[k] == 1:
+            count += 1
+    rows = np.empty(count, np.int64)
+    m = 0
+    for k in range(size):
+        if status[k] == 1:
+            rows[m] = k
+            m += 1
+    x_out = np.empty((count, n))
+    var = np.empty((count, n))
+    upper = np.empty((count, n * (n + 1) // 2 if full_covariance else 0))
+    xr = np.empty(n)
+    Pr = np.empty((n, n))
+    for c in range(count):
+        k = rows[c]
+        scale = q_big if (with_psi and psi[k]) else 1.0
+        _predict_cv_row(x[k], P[k], instant - t[k], q, scale, n // 2, xr, Pr)
+        for i in range(n):
+            x_out[c, i] = xr[i]
+            var[c, i] = Pr[i, i]
+        if full_covariance:
+            u = 0
+            for i in range(n):
+                for j in range(i, n):
+                    upper[c, u] = Pr[i, j]
+                    u += 1
+    return (rows, x_out, var, upper, track_id[rows], n_updates[rows], n_misses[rows], alt_m[rows], z_hint[rows],
+            mode3a[rows], icao24[rows], iff[rows])
