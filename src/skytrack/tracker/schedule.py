@@ -143,24 +143,28 @@ class Schedule:
     def window_start(self, s, index):
         return np.nan_to_num(self.phase[s]) + index * self.window_length[s]
 
-    def complete_windows(self, pending: PlotBatch, final: bool):
-        """Windows that can no longer receive plots, in start order, each with its plot rows.
+    def complete_windows(self, pending: PlotBatch, final: bool) -> tuple[np.ndarray, list, np.ndarray]:
+        """Windows that can no longer receive plots, in start order.
 
-        Yields ``(sensor, index, start, end, rows of pending)``; windows without plots are
-        included (tracks expected in them record their misses).  Call :meth:`leftover`
-        afterwards for the rows not yet taken.
+        Returns ``(order, windows, leftover)``: ``order`` sorts the pending plots by sensor,
+        window and time, so that each window's plots are the contiguous slice ``rows`` of the
+        sorted plots; ``windows`` lists ``(sensor, index, start, end, rows)``, windows without
+        plots included (tracks expected in them record their misses); ``leftover`` are the
+        positions, in the sorted plots, of those no window took.
         """
-        self._taken = np.zeros(len(pending), dtype=bool)
         sensors = np.flatnonzero(self.seen)
+        plot_window = self.window_index(pending.sensor, pending.time)
+        order = np.lexsort((pending.time, plot_window, pending.sensor))
+        none = (order, [], np.arange(len(pending)))
         if len(sensors) == 0:
-            return
+            return none
         last = self.window_index(sensors, self.last_time[sensors])
         # the window holding a sensor's latest plot may still grow, unless this is the end
         complete_until = last if final else last - 1
         first = self.next_window[sensors]
         counts = np.maximum(complete_until - first + 1, 0)
         if counts.sum() == 0:
-            return
+            return none
         window_sensor = np.repeat(sensors, counts)
         window_index = np.repeat(first, counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts))
         window_start = self.window_start(window_sensor, window_index)
@@ -170,24 +174,21 @@ class Schedule:
             limit = (blocking_start.min(), sensors[np.argmin(blocking_start)])
             allowed = (window_start < limit[0]) | ((window_start == limit[0]) & (window_sensor < limit[1]))
             window_sensor, window_index, window_start = window_sensor[allowed], window_index[allowed], window_start[allowed]
-        order = np.lexsort((window_sensor, window_start))
-        plot_window = self.window_index(pending.sensor, pending.time)
-        plot_order = np.lexsort((pending.time, plot_window, pending.sensor))
-        keys_sensor = pending.sensor[plot_order]
-        keys_window = plot_window[plot_order]
-        for s, k, start in zip(window_sensor[order].tolist(), window_index[order].tolist(), window_start[order].tolist()):
+        by_start = np.lexsort((window_sensor, window_start))
+        keys_sensor = pending.sensor[order]
+        keys_window = plot_window[order]
+        taken = np.zeros(len(pending), dtype=bool)
+        windows = []
+        for s, k, start in zip(window_sensor[by_start].tolist(), window_index[by_start].tolist(),
+                               window_start[by_start].tolist()):
             lo = np.searchsorted(keys_sensor, s, side="left")
             hi = np.searchsorted(keys_sensor, s, side="right")
-            a = lo + np.searchsorted(keys_window[lo:hi], k, side="left")
-            b = lo + np.searchsorted(keys_window[lo:hi], k, side="right")
-            rows = plot_order[a:b]
-            self._taken[rows] = True
+            a = lo + int(np.searchsorted(keys_window[lo:hi], k, side="left"))
+            b = lo + int(np.searchsorted(keys_window[lo:hi], k, side="right"))
+            taken[a:b] = True
             self.next_window[s] = k + 1
-            yield s, k, start, start + self.window_length[s], rows
-
-    def leftover(self) -> np.ndarray:
-        """Rows of the last ``complete_windows`` call's pending plots that no window took."""
-        return np.flatnonzero(~self._taken)
+            windows.append((s, k, start, start + self.window_length[s], slice(a, b)))
+        return order, windows, np.flatnonzero(~taken)
 
     # ------------------------------------------------------------------ expectations
     def expectations(self, s: int, w_start: float, w_end: float, position: np.ndarray, last_event: np.ndarray,

@@ -143,15 +143,18 @@ class Tracker:
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
-        pending, converted = self.pending, self.pending_converted
-        for s, _, start, end, rows in self.schedule.complete_windows(pending, final):
+        order, windows, leftover = self.schedule.complete_windows(self.pending, final)
+        if not windows:
+            return
+        pending, converted = self.pending.take(order), self.pending_converted.take(order)
+        for s, _, start, end, rows in windows:
             if self.clock.next is None:
-                self.clock.start(float(pending.time[rows].min()) if len(rows) else start, self.schedule.phase[self.output_sensor])
+                first = float(pending.time[rows].min()) if rows.stop > rows.start else start
+                self.clock.start(first, self.schedule.phase[self.output_sensor])
             self._emit_until(start)
             self.stats["windows"] += 1
             self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
             self.last_window_end = max(self.last_window_end, end)
-        leftover = self.schedule.leftover()
         self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
 
     # ------------------------------------------------------------------ output
