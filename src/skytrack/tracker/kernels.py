@@ -6,9 +6,9 @@ call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from p
 
 1. each track predicted to its reference time (process-noise factor per track), its position
    spread ``sqrt(lambda_max)``;
-2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x; plots
-   whose spread is above ``wide_factor`` times the batch's mean are checked against every track,
-   so they do not widen every track's search;
+2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x, in
+   classes of plot spread (powers of two), so that a few very uncertain plots do not widen
+   every track's search;
 3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
 4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
    track has a Mode C altitude — the plot placed again at that altitude on the sphere model
@@ -84,10 +84,10 @@ def _max_eig_sym(M, dim):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
-                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, plot_order, q, ndim,
-                  search_scale, margin_s, wide_factor, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
+                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, plot_order, bucket_start, q,
+                  ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
     """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots, ``plot_order`` sorts
-    ``free`` by x; the process noise of a track is ``q_big`` times the model's while its psi is set
+    ``free`` by spread class then x (class c: ``bucket_start[c]:bucket_start[c + 1]``); the process noise of a track is ``q_big`` times the model's while its psi is set
     or when ``forced``."""
     n_tracks = len(tracks)
     n_plots = len(free)
@@ -145,69 +145,46 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             for b in range(ndim):
                 block[a, b] = plot_cov[j, a, b]
         sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
-    # 2. candidates by sort-and-sweep over x (plots in ``plot_order``, sorted by x by the caller);
-    #    plots whose spread is far above the batch's (wide_factor times the mean: plots that
-    #    cannot be placed) are checked against every track instead, so they widen no search
-    mean_sigma = 0.0
-    for j in range(n_plots):
-        mean_sigma += sigma_p[j]
-    wide_limit = wide_factor * mean_sigma / max(n_plots, 1)
-    narrow_max = 0.0
-    n_narrow = 0
-    for j in range(n_plots):
-        if sigma_p[j] <= wide_limit:
-            n_narrow += 1
-            if sigma_p[j] > narrow_max:
-                narrow_max = sigma_p[j]
-    order = np.empty(n_narrow, np.int64)
-    xs_sorted = np.empty(n_narrow)
-    m = 0
-    for s in range(n_plots):
-        j = plot_order[s]
-        if sigma_p[j] <= wide_limit:
-            order[m] = j
-            xs_sorted[m] = plot_pos[j, 0]
-            m += 1
+    # 2. candidates by sort-and-sweep over x within spread classes: ``plot_order`` sorts the plots
+    #    by class, then x; class c holds plots bucket_start[c]:bucket_start[c + 1].  A track
+    #    searches each class with that class's largest spread, so a few very uncertain plots
+    #    (near the radar at an assumed height, or not placeable) widen only their own search
+    n_classes = len(bucket_start) - 1
+    class_max = np.zeros(n_classes)
+    xs_sorted = np.empty(n_plots)
+    for c in range(n_classes):
+        for s in range(bucket_start[c], bucket_start[c + 1]):
+            j = plot_order[s]
+            xs_sorted[s] = plot_pos[j, 0]
+            if sigma_p[j] > class_max[c]:
+                class_max[c] = sigma_p[j]
     capacity = 2 * (n_tracks + n_plots) + 16
     out_t = np.empty(capacity, np.int64)
     out_p = np.empty(capacity, np.int64)
     count = 0
     for k in range(n_tracks):
-        reach = search_scale * (sigma_t[k] + narrow_max) + margin[k]
-        lo = np.searchsorted(xs_sorted, ref_pos[k, 0] - reach)
-        hi = np.searchsorted(xs_sorted, ref_pos[k, 0] + reach, side="right")
-        for s in range(lo, hi):
-            j = order[s]
-            radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
-            d2 = 0.0
-            for a in range(ndim):
-                diff = plot_pos[j, a] - ref_pos[k, a]
-                d2 += diff * diff
-            if d2 <= radius * radius:
-                if count == capacity:
-                    capacity *= 2
-                    out_t = _grow(out_t, capacity)
-                    out_p = _grow(out_p, capacity)
-                out_t[count] = k
-                out_p[count] = j
-                count += 1
-    for j in range(n_plots):
-        if sigma_p[j] <= wide_limit:
-            continue
-        for k in range(n_tracks):
-            radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
-            d2 = 0.0
-            for a in range(ndim):
-                diff = plot_pos[j, a] - ref_pos[k, a]
-                d2 += diff * diff
-            if d2 <= radius * radius:
-                if count == capacity:
-                    capacity *= 2
-                    out_t = _grow(out_t, capacity)
-                    out_p = _grow(out_p, capacity)
-                out_t[count] = k
-                out_p[count] = j
-                count += 1
+        for c in range(n_classes):
+            first, last = bucket_start[c], bucket_start[c + 1]
+            if first == last:
+                continue
+            reach = search_scale * (sigma_t[k] + class_max[c]) + margin[k]
+            lo = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] - reach)
+            hi = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] + reach, side="right")
+            for s in range(lo, hi):
+                j = plot_order[s]
+                radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
+                d2 = 0.0
+                for a in range(ndim):
+                    diff = plot_pos[j, a] - ref_pos[k, a]
+                    d2 += diff * diff
+                if d2 <= radius * radius:
+                    if count == capacity:
+                        capacity *= 2
+                        out_t = _grow(out_t, capacity)
+                        out_p = _grow(out_p, capacity)
+                    out_t[count] = k
+                    out_p[count] = j
+                    count += 1
     # 3.-5. exact gate of every candidate at its plot's time; pairs inside are written to the
     #       next free slot ``m`` (compaction as we go, no fancy indexing afterwards)
     x_pred = np.empty((count, n))

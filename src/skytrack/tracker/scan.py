@@ -49,8 +49,9 @@ from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv,
 
 #: search-radius safety factor over the exact Mahalanobis bound
 RADIUS_FACTOR = 1.05
-#: a plot whose spread exceeds this multiple of the window's mean is searched from its own side
-WIDE_PLOT_FACTOR = 5.0
+#: spread classes of the compiled search: [0, 32 m), [32, 64 m), ... doubling, the last open
+SPREAD_BASE_M = 16.0
+SPREAD_CLASSES = 16
 
 
 @dataclass
@@ -352,8 +353,8 @@ class ScanProcessor:
         rows, plot_rows, candidates, *big = stage_cv(
             tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
             plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-            np.argsort(converted.position[free, 0], kind="stable"), self.fused_q, dim, self.search_scale, margin_s,
-            WIDE_PLOT_FACTOR, self.scorer.gate(dim), replace_height,
+            *self._search_order(converted, free), self.fused_q, dim, self.search_scale, margin_s,
+            self.scorer.gate(dim), replace_height,
             float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
             sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
             miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg, filter_updates,
@@ -377,6 +378,17 @@ class ScanProcessor:
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows
+
+    def _search_order(self, converted: ConvertedPlots, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plots of ``free`` sorted by spread class, then x, and where each class starts."""
+        spread = self._spread(converted.covariance[free])
+        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M), 0, SPREAD_CLASSES - 1)
+        classes = classes.astype(np.int64)
+        order = np.lexsort((converted.position[free, 0], classes))
+        return order, np.searchsorted(classes[order], np.arange(SPREAD_CLASSES + 1))
+
+    def _spread(self, covariance: np.ndarray) -> np.ndarray:
+        return np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
         dim = self.dim

@@ -19,15 +19,15 @@ from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 
 @njit(cache=True, nogil=True)
 def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos,
-             plot_cov, plot_mode_c, plot_range, plot_azimuth, plot_order, q, ndim, search_scale, margin_s,
-             wide_factor, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
+             plot_cov, plot_mode_c, plot_range, plot_azimuth, plot_order, bucket_start, q, ndim, search_scale,
+             margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
              z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff):
     """Returns (bank rows, plot rows) updated, the number of candidates, and the big-cluster pairs
     (local track and plot indices, ``d^2``, predicted state, Cholesky factor, measurement)."""
     kt, kp, d2, x_pred, P_pred, position, covariance, chol, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
-        plot_mode_c, plot_range, plot_azimuth, plot_order, q, ndim, search_scale, margin_s, wide_factor, gate,
+        plot_mode_c, plot_range, plot_azimuth, plot_order, bucket_start, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
     chosen, big = assign_clusters(kt, kp, d2, np.full(len(tracks), miss), len(tracks), len(free), max_dense)
     pick = np.flatnonzero(chosen)
