@@ -43,7 +43,7 @@ from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.kernels import update_write_cv
-from skytrack.tracker.stage_kernel import stage_cv
+from skytrack.tracker.stage_kernel import stage_cv, stages_cv
 from skytrack.tracker.schedule import SECTOR_MARGIN, Schedule
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
 
@@ -175,6 +175,9 @@ class ScanProcessor:
 
     # ------------------------------------------------------------------ one window
     def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
+        if self.fused[s] and self.schedule.rotating[s] and set(self.bank.column_storage) == self._standard_columns:
+            self._process_compiled(s, w_start, w_end, plots, converted)
+            return
         bank = self.bank
         n_tracks = len(bank)
         hit = np.zeros(n_tracks, dtype=bool)
@@ -220,6 +223,75 @@ class ScanProcessor:
             self._manage_compiled(hit, expected, w_end)
         else:
             self.lifecycle.manage(bank)
+
+    def _process_compiled(self, s: int, w_start: float, w_end: float, plots: PlotBatch,
+                          converted: ConvertedPlots) -> None:
+        """:meth:`process` of the common case: expectations, every association stage, then
+        initiation and life cycle, each one compiled call (:func:`~skytrack.tracker.stage_kernel.stages_cv`)."""
+        bank = self.bank
+        n_tracks = len(bank)
+        hit = np.zeros(n_tracks, dtype=bool)
+        plot_used = np.zeros(len(plots), dtype=bool)
+        expected = hit
+        if n_tracks:
+            t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
+            status_now = np.where(nearby, bank.status, -1).astype(np.int8)
+            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used)
+        self.stats["plots_assigned"] += int(plot_used.sum())
+        self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+
+    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used) -> None:
+        bank = self.bank
+        dim = self.dim
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        storage, columns = bank.storage, bank.column_storage
+        psi_enabled = isinstance(storage, ManoeuvreState)
+        if psi_enabled:
+            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
+            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
+        else:
+            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
+            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
+        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        replace_height = not sensor.is_3d
+        two_point = self.config.initiation.method == "two-point"
+        miss = self.scorer.gate(dim + 1)
+        classes = self._spread_classes(converted.covariance)
+        window_order = np.lexsort((converted.position[:, 0], classes))
+        stage = 0
+        while True:
+            stage, candidates, manoeuvre_hits, *big = stages_cv(
+                stage, self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, window_order, classes,
+                SPREAD_CLASSES, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, plots.time,
+                converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+                self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim), replace_height,
+                float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
+                sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s],
+                self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg,
+                filter_updates, columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"],
+                columns["mode3a"], columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+            )
+            self.stats["candidate_pairs"] += candidates
+            self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
+            if stage == 3:
+                return
+            # clusters too large for the dense solver: one sparse matching, then their updates
+            rows, plot_rows, d2, x_pred, P_pred, chol, position, covariance = big
+            chosen = sparse_assignment(rows, plot_rows, d2, np.full(len(bank), miss))
+            rows, plot_rows = rows[chosen], plot_rows[chosen]
+            update_write_cv(
+                rows, plot_rows, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
+                covariance[chosen], dim, stage == 1, psi_enabled, on, off, memory, two_point, storage.x, storage.P,
+                psi, nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"],
+                columns["z_hint"], columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"],
+                columns["iff"], plots.time, plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+            )
+            hit[rows] = True
+            plot_used[plot_rows] = True
+            if stage == 1:
+                self.stats["manoeuvre_gate_hits"] += len(rows)
+            stage += 1
 
     def _expect_compiled(self, s: int, w_start: float, w_end: float):
         bank = self.bank
@@ -381,14 +453,15 @@ class ScanProcessor:
 
     def _search_order(self, converted: ConvertedPlots, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Plots of ``free`` sorted by spread class, then x, and where each class starts."""
-        spread = self._spread(converted.covariance[free])
-        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M), 0, SPREAD_CLASSES - 1)
-        classes = classes.astype(np.int64)
+        classes = self._spread_classes(converted.covariance[free])
         order = np.lexsort((converted.position[free, 0], classes))
         return order, np.searchsorted(classes[order], np.arange(SPREAD_CLASSES + 1))
 
-    def _spread(self, covariance: np.ndarray) -> np.ndarray:
-        return np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
+    def _spread_classes(self, covariance: np.ndarray) -> np.ndarray:
+        """Spread class of each plot for the compiled search: floor(log2(spread / base)), clipped."""
+        spread = np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
+        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M), 0, SPREAD_CLASSES - 1)
+        return classes.astype(np.int64)
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
         dim = self.dim

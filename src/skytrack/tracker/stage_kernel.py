@@ -43,3 +43,97 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
     rest = np.flatnonzero(big)
     return (rows, plot_rows, candidates, kt[rest], kp[rest], d2[rest], x_pred[rest], P_pred[rest], chol[rest],
             position[rest], covariance[rest])
+
+
+@njit(cache=True, nogil=True)
+def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, window_order, plot_class,
+              n_classes, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
+              plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
+              var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
+              nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
+              plot_mode_s, plot_iff):
+    """The association stages of a window from ``first_stage`` on, in one call: 0 confirmed tracks,
+    1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
+    ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
+    (:meth:`skytrack.tracker.scan.ScanProcessor.process`).  ``status_now`` is each track's status,
+    or -1 when it is too far from the swept sector; ``hit`` and ``plot_used`` are updated.
+
+    Stops after a stage whose assignment has clusters too large for the dense solver and returns
+    their pairs (bank rows, window plot rows, ``d^2``, predicted state, Cholesky factor,
+    measurement) with the stage number; Python solves them and calls again from the next stage.
+    Returns (stage reached, candidates, manoeuvre-gate hits, big-cluster pairs...); the stage
+    reached is 3 when every stage is done.
+    """
+    n_tracks = len(status_now)
+    n_plots = len(plot_used)
+    candidates = 0
+    manoeuvre_hits = 0
+    local = np.empty(n_plots, np.int64)
+    for stage in range(first_stage, 3):
+        if stage == 1 and not manoeuvre_gate:
+            continue
+        count = 0
+        for k in range(n_tracks):
+            if _member(stage, status_now[k], expected[k], hit[k], psi_enabled and psi_all[k]):
+                count += 1
+        free_count = 0
+        for j in range(n_plots):
+            if not plot_used[j]:
+                free_count += 1
+        if count == 0 or free_count == 0:
+            continue
+        tracks = np.empty(count, np.int64)
+        stage_t_ref = np.empty(count)
+        m = 0
+        for k in range(n_tracks):
+            if _member(stage, status_now[k], expected[k], hit[k], psi_enabled and psi_all[k]):
+                tracks[m] = k
+                stage_t_ref[m] = t_ref[k]
+                m += 1
+        free = np.empty(free_count, np.int64)
+        m = 0
+        for j in range(n_plots):
+            if not plot_used[j]:
+                free[m] = j
+                local[j] = m
+                m += 1
+        # the window's search order, restricted to the free plots, with each class's start
+        order = np.empty(free_count, np.int64)
+        bucket_start = np.zeros(n_classes + 1, np.int64)
+        m = 0
+        for s in range(n_plots):
+            j = window_order[s]
+            if not plot_used[j]:
+                order[m] = local[j]
+                bucket_start[plot_class[j] + 1] += 1
+                m += 1
+        for c in range(n_classes):
+            bucket_start[c + 1] += bucket_start[c]
+        forced = stage == 1
+        rows, plot_rows, found, big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = stage_cv(
+            tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, stage_t_ref, plot_time, plot_pos,
+            plot_cov, plot_mode_c, plot_range, plot_azimuth, order, bucket_start, q, ndim, search_scale, margin_s,
+            gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
+            psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
+            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff)
+        candidates += found
+        for c in range(len(rows)):
+            hit[rows[c]] = True
+            plot_used[plot_rows[c]] = True
+        if forced:
+            manoeuvre_hits += len(rows)
+        if len(big_t):
+            return (stage, candidates, manoeuvre_hits, tracks[big_t], free[big_p], d2, x_pred, P_pred, chol, position,
+                    covariance)
+    empty = np.zeros(0, np.int64)
+    return (3, candidates, manoeuvre_hits, empty, empty, np.zeros(0), np.zeros((0, 2 * ndim)),
+            np.zeros((0, 2 * ndim, 2 * ndim)), np.zeros((0, ndim, ndim)), np.zeros((0, 3)), np.zeros((0, 3, 3)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _member(stage, status_now, expected, hit, psi):
+    if stage == 0:
+        return status_now == 1
+    if stage == 1:
+        return status_now == 1 and expected and not hit and not psi
+    return status_now == 0
