@@ -1,0 +1,257 @@
+"""The compiled path of the scan processor for the common case (a mixin of ScanProcessor).
+
+It applies when :func:`fused_cv_q` finds a compiled Kalman filter (plain or with the psi
+switch) on a constant-velocity model with the same noise on every axis, the ``d2`` scorer and
+the ``gnn`` assigner, for a ground radar without range rate.  A rotating radar's window is then
+expectations (:func:`~skytrack.tracker.window_kernels.expect_rotating`), every association stage
+(:func:`~skytrack.tracker.stage_kernel.stages_cv`) and the end of the window
+(:func:`~skytrack.tracker.window_kernels.initiate_manage_cv`): three compiled calls.  Other
+sensors use one compiled call per stage (:meth:`CompiledStages._associate_fused`).  The composed
+parts in :mod:`skytrack.tracker.scan` are the reference; tests hold the two equal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from skytrack.association.gnn import MAX_DENSE_CLUSTER, sparse_assignment
+from skytrack.core.linalg import max_eigenvalue_sym
+from skytrack.core.plots import PlotBatch
+from skytrack.filters.base import GaussianState
+from skytrack.filters.kalman import KalmanFilter
+from skytrack.filters.maneuver import ManoeuvreState
+from skytrack.geo.polar import EARTH_RADIUS_M
+from skytrack.models.conversion import ConvertedPlots
+from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batch
+from skytrack.models.motion import ConstantVelocityAxis
+from skytrack.tracker.kernels import update_write_cv
+from skytrack.tracker.schedule import SECTOR_MARGIN
+from skytrack.tracker.stage_kernel import stage_cv, stages_cv
+from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
+
+#: spread classes of the compiled search: [0, 32 m), [32, 64 m), ... doubling, the last open
+SPREAD_BASE_M = 16.0
+SPREAD_CLASSES = 16
+
+
+class CompiledStages:
+    """Compiled counterparts of :class:`~skytrack.tracker.scan.ScanProcessor`'s steps."""
+
+    def _convert_compiled(self, s, range_m, azimuth, elevation, altitude, altitude_sigma) -> ConvertedPlots:
+        """:func:`convert_plots` of a ground radar by the compiled kernels."""
+        sensor = self.sensors.sensors[s]
+        if sensor.is_3d:
+            position, covariance, consistent = convert_3d_batch(
+                range_m, azimuth, elevation, sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2,
+                sensor.sigma_elevation_rad**2, self._rotation[s], self._origin[s])
+        else:
+            position, covariance, consistent = convert_2d_batch(
+                range_m, azimuth, altitude, np.square(altitude_sigma), float(sensor.alt_m or 0.0), EARTH_RADIUS_M,
+                sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self._rotation[s], self._origin[s])
+        return ConvertedPlots(position, covariance, consistent)
+
+    # ------------------------------------------------------------------ one window
+
+    def _process_compiled(self, s: int, w_start: float, w_end: float, plots: PlotBatch,
+                          converted: ConvertedPlots) -> None:
+        """:meth:`process` of the common case: expectations, every association stage, then
+        initiation and life cycle, each one compiled call (:func:`~skytrack.tracker.stage_kernel.stages_cv`)."""
+        bank = self.bank
+        n_tracks = len(bank)
+        hit = np.zeros(n_tracks, dtype=bool)
+        plot_used = np.zeros(len(plots), dtype=bool)
+        expected = hit
+        if n_tracks:
+            t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
+            status_now = np.where(nearby, bank.status, -1).astype(np.int8)
+            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used)
+        self.stats["plots_assigned"] += int(plot_used.sum())
+        self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+
+    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used) -> None:
+        bank = self.bank
+        dim = self.dim
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        storage, columns = bank.storage, bank.column_storage
+        psi_enabled = isinstance(storage, ManoeuvreState)
+        if psi_enabled:
+            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
+            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
+        else:
+            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
+            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
+        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        replace_height = not sensor.is_3d
+        two_point = self.config.initiation.method == "two-point"
+        miss = self.scorer.gate(dim + 1)
+        classes = self._spread_classes(converted.covariance)
+        window_order = np.lexsort((converted.position[:, 0], classes))
+        stage = 0
+        while True:
+            stage, candidates, manoeuvre_hits, *big = stages_cv(
+                stage, self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, window_order, classes,
+                SPREAD_CLASSES, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, plots.time,
+                converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+                self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim), replace_height,
+                float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
+                sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s],
+                self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg,
+                filter_updates, columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"],
+                columns["mode3a"], columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+            )
+            self.stats["candidate_pairs"] += candidates
+            self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
+            if stage == 3:
+                return
+            # clusters too large for the dense solver: one sparse matching, then their updates
+            rows, plot_rows, d2, x_pred, P_pred, chol, position, covariance = big
+            chosen = sparse_assignment(rows, plot_rows, d2, np.full(len(bank), miss))
+            rows, plot_rows = rows[chosen], plot_rows[chosen]
+            update_write_cv(
+                rows, plot_rows, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
+                covariance[chosen], dim, stage == 1, psi_enabled, on, off, memory, two_point, storage.x, storage.P,
+                psi, nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"],
+                columns["z_hint"], columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"],
+                columns["iff"], plots.time, plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+            )
+            hit[rows] = True
+            plot_used[plot_rows] = True
+            if stage == 1:
+                self.stats["manoeuvre_gate_hits"] += len(rows)
+            stage += 1
+
+    def _expect_compiled(self, s: int, w_start: float, w_end: float):
+        bank = self.bank
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        storage = bank.storage
+        columns = bank.column_storage
+        return expect_rotating(storage.x, columns["t"], columns["z_hint"], len(bank), self.dim, self.order,
+                               0.5 * (w_start + w_end), w_start, w_end, float(schedule.phase[s]),
+                               float(schedule.period[s]), self._rotation[s], self._origin[s],
+                               float(sensor.max_range_m or 0.0), self._cover_xy, self._cover_r2, self._cover_all,
+                               SECTOR_MARGIN)
+
+    def _initiate_manage_compiled(self, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
+                                  hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+        """Initiation, events, life cycle and compaction in one compiled call (standard columns only)."""
+        bank = self.bank
+        bank.reserve(len(bank) + len(new))
+        storage, columns = bank.storage, bank.column_storage
+        with_psi = isinstance(storage, ManoeuvreState)
+        cfg = self.config.lifecycle
+        size, misses, confirmed, hopeless, lost = initiate_manage_cv(
+            len(bank), new, plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.mode3a,
+            plots.mode_s, plots.iff, self.next_track_id, self.config.initiation.sigma_v, self.dim, with_psi, hit,
+            expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
+            storage.x, storage.P, storage.psi if with_psi else self._no_psi,
+            storage.nis_avg if with_psi else np.zeros(1), storage.n_updates if with_psi else np.zeros(1, np.int64),
+            columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
+            columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
+            columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
+            columns["iff"],
+        )
+        bank.size = size
+        self.next_track_id += len(new)
+        self.stats["tracks_started"] += len(new)
+        self.stats["misses"] += misses
+        self.stats["tracks_confirmed"] += confirmed
+        self.stats["tentative_dropped"] += hopeless
+        self.stats["tracks_deleted"] += lost
+
+    def _manage_compiled(self, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+        bank = self.bank
+        cfg = self.config.lifecycle
+        columns = bank.columns
+        keep, misses, confirmed, hopeless, lost = record_and_manage(
+            hit, expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
+            bank.storage.P, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
+            columns["n_misses"], columns["last_event"], columns["confirmed_at"],
+        )
+        self.stats["misses"] += misses
+        self.stats["tracks_confirmed"] += confirmed
+        self.stats["tentative_dropped"] += hopeless
+        self.stats["tracks_deleted"] += lost
+        bank.keep(keep)
+
+    def _associate_fused(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
+        """:meth:`_associate` in one compiled call (:func:`skytrack.tracker.stage_kernel.stage_cv`)."""
+        bank = self.bank
+        dim = self.dim
+        sensor = self.sensors.sensors[s]
+        schedule = self.schedule
+        storage = bank.storage
+        columns = bank.column_storage
+        psi_enabled = isinstance(storage, ManoeuvreState)
+        if psi_enabled:
+            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
+            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
+        else:
+            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
+            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
+        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        replace_height = not sensor.is_3d
+        two_point = self.config.initiation.method == "two-point"
+        miss = self.scorer.gate(dim + 1)
+        rows, plot_rows, candidates, *big = stage_cv(
+            tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
+            plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+            *self._search_order(converted, free), self.fused_q, dim, self.search_scale, margin_s,
+            self.scorer.gate(dim), replace_height,
+            float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
+            sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
+            miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg, filter_updates,
+            columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"],
+            columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+        )
+        self.stats["candidate_pairs"] += candidates
+        big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = big
+        if len(big_t):
+            # clusters too large for the dense solver: one sparse matching, then their updates
+            chosen = sparse_assignment(big_t, big_p, d2, np.full(len(tracks), miss))
+            extra_rows, extra_plots = tracks[big_t[chosen]], free[big_p[chosen]]
+            update_write_cv(
+                extra_rows, extra_plots, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
+                covariance[chosen], dim, manoeuvre, psi_enabled, on, off, memory, two_point, storage.x, storage.P, psi,
+                nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"], columns["z_hint"],
+                columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"], columns["iff"], plots.time,
+                plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+            )
+            rows, plot_rows = np.concatenate([rows, extra_rows]), np.concatenate([plot_rows, extra_plots])
+        if manoeuvre:
+            self.stats["manoeuvre_gate_hits"] += len(rows)
+        return rows, plot_rows
+
+    def _search_order(self, converted: ConvertedPlots, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plots of ``free`` sorted by spread class, then x, and where each class starts."""
+        classes = self._spread_classes(converted.covariance[free])
+        order = np.lexsort((converted.position[free, 0], classes))
+        return order, np.searchsorted(classes[order], np.arange(SPREAD_CLASSES + 1))
+
+    def _spread_classes(self, covariance: np.ndarray) -> np.ndarray:
+        """Spread class of each plot for the compiled search: floor(log2(spread / base)), clipped."""
+        spread = np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
+        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M), 0, SPREAD_CLASSES - 1)
+        return classes.astype(np.int64)
+
+
+def fused_cv_q(filter, association) -> float | None:
+    """The CV process-noise PSD when the compiled stage applies to this filter and association, else None.
+
+    It applies to compiled Kalman filters (plain or with the psi switch) in Joseph form on a
+    constant-velocity model with the same noise on every axis, with the d2 scorer and the GNN
+    assigner.
+    """
+    kalman = getattr(filter, "kalman", filter)
+    if not (isinstance(kalman, KalmanFilter) and kalman.compiled and kalman.form == "joseph"):
+        return None
+    if not issubclass(filter.state_type, GaussianState) or filter.recorder.active or kalman.recorder.active:
+        return None
+    motion = kalman.transition
+    axis = motion.axes[0]
+    if not (motion.identical_axes and type(axis) is ConstantVelocityAxis):
+        return None
+    if not (association.compiled and association.scorer == "d2" and association.assigner == "gnn"):
+        return None
+    return float(axis.q)
