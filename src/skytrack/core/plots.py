@@ -130,23 +130,25 @@ def _text(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _codes(frame: pd.DataFrame, column: str, base: int, source: str, first_row: int) -> np.ndarray:
-    out = np.full(len(frame), -1, dtype=np.int32)
+    """Integer codes of a text column, parsing each distinct text once (pyarrow dictionary)."""
+    import pyarrow as pa
+
     if column not in frame.columns:
-        return out
-    values, present = _text(frame, column)
-    if not present.any():
-        return out
-    uniques, inverse = np.unique(values[present].astype(str), return_inverse=True)
-    parsed = np.empty(len(uniques), dtype=np.int32)
-    for k, text in enumerate(uniques):  # one parse per distinct code, not per plot
+        return np.full(len(frame), -1, dtype=np.int32)
+    encoded = pa.array(frame[column].astype("str"), type=pa.string(), from_pandas=True).dictionary_encode()
+    texts = encoded.dictionary.to_pylist()
+    parsed = np.empty(len(texts) + 1, dtype=np.int32)
+    parsed[-1] = -1  # absent
+    for k, text in enumerate(texts):
         try:
             parsed[k] = int(text, base)
         except ValueError:
-            row = first_row + int(np.flatnonzero(present)[np.flatnonzero(inverse == k)[0]])
+            indices = encoded.indices.to_numpy(zero_copy_only=False)
+            row = first_row + int(np.flatnonzero(indices == k)[0])
             kind = "octal" if base == 8 else "hexadecimal"
             raise ValueError(f"{source}, row {row}, column {column}: {text!r} is not a {kind} code") from None
-    out[present] = parsed[inverse]
-    return out
+    indices = encoded.indices.fill_null(len(texts)).to_numpy(zero_copy_only=False)
+    return parsed[indices]
 
 
 def _iff_codes(frame: pd.DataFrame, source: str, first_row: int) -> np.ndarray:

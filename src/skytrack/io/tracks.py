@@ -173,15 +173,20 @@ class TrackWriter:
             fields.append(pa.field(field.name, _ARROW_KINDS[kind] if kind else field.type))
         return pa.schema(fields)
 
-    def write(self, chunk: pd.DataFrame) -> None:
+    def write(self, chunk: pd.DataFrame, *, checked: bool = False) -> None:
+        """Append ``chunk``; ``checked=True`` skips the validation for tables that are valid by
+        construction (the tracker's own output, in the docs/formats.md column order)."""
         if len(chunk) == 0:
             return
-        tracks = add_missing_columns(_tracks_to_write(chunk, self.path), TRACK_SCHEMA)
+        tracks = add_missing_columns(chunk if checked else _tracks_to_write(chunk, self.path), TRACK_SCHEMA)
         table = pa.Table.from_pandas(tracks, preserve_index=False)
         if self._schema is None:
             self._schema = self._schema_for(table)
             if self.format == "parquet":
-                self._writer = pq.ParquetWriter(str(self.path), self._schema)
+                # dictionary-encode only the text columns: trying it on every float column
+                # costs more than the whole compression and gains nothing
+                text = [f.name for f in self._schema if pa.types.is_string(f.type)]
+                self._writer = pq.ParquetWriter(str(self.path), self._schema, use_dictionary=text)
             else:
                 self._stream = (
                     pa.CompressedOutputStream(str(self.path), "gzip")
