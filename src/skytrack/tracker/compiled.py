@@ -29,9 +29,9 @@ from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.stage_kernel import stage_cv, stages_cv
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
 
-#: spread classes of the compiled search: [0, 32 m), [32, 64 m), ... doubling, the last open
+#: spread classes of the compiled search: [0, 64 m), [64, 256 m), ... by factors of 4, the last open
 SPREAD_BASE_M = 16.0
-SPREAD_CLASSES = 16
+SPREAD_CLASSES = 8
 
 
 class CompiledStages:
@@ -230,9 +230,9 @@ class CompiledStages:
         return order, np.searchsorted(classes[order], np.arange(SPREAD_CLASSES + 1))
 
     def _spread_classes(self, covariance: np.ndarray) -> np.ndarray:
-        """Spread class of each plot for the compiled search: floor(log2(spread / base)), clipped."""
+        """Spread class of each plot for the compiled search: floor(log4(spread / base)), clipped."""
         spread = np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
-        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M), 0, SPREAD_CLASSES - 1)
+        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M) / 2.0, 0, SPREAD_CLASSES - 1)
         return classes.astype(np.int64)
 
 

@@ -28,6 +28,10 @@ from numba import njit
 from skytrack.models.conversion_kernels import place_2d
 
 
+#: spread classes with at most this many plots are checked whole, without a search
+SMALL_CLASS = 16
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
     step = abs(dt)
@@ -167,9 +171,12 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             first, last = bucket_start[c], bucket_start[c + 1]
             if first == last:
                 continue
-            reach = search_scale * (sigma_t[k] + class_max[c]) + margin[k]
-            lo = _first_not_below(xs_sorted, first, last, ref_pos[k, 0] - reach)
-            hi = _first_above(xs_sorted, lo, last, ref_pos[k, 0] + reach)
+            if last - first <= SMALL_CLASS:
+                lo, hi = first, last  # a few plots: checking them all is cheaper than searching
+            else:
+                reach = search_scale * (sigma_t[k] + class_max[c]) + margin[k]
+                lo = _first_not_below(xs_sorted, first, last, ref_pos[k, 0] - reach)
+                hi = _first_above(xs_sorted, lo, last, ref_pos[k, 0] + reach)
             for s in range(lo, hi):
                 j = plot_order[s]
                 radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
