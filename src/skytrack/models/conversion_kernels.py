@@ -16,8 +16,10 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pos_out, cov_out):
-    """A 2-D plot at a known height: common-frame position and covariance (sphere model)."""
+def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pos_out, cov_out, work):
+    """A 2-D plot at a known height: common-frame position and covariance (sphere model).
+
+    ``work`` is a ``[4, 3, 3]`` scratch array of the caller (no allocation per plot)."""
     a = earth + sensor_alt
     b = earth + height
     s = (r * r - (a - b) ** 2) / (4.0 * a * b)
@@ -30,7 +32,11 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     up = b * cos_phi - a
     sin_az = np.sin(az)
     cos_az = np.cos(az)
-    local = np.empty(3)
+    J = work[0]
+    local_cov = work[1]
+    tmp = work[2]
+    local = work[3, 0]
+    var = work[3, 1]
     local[0] = ground * sin_az
     local[1] = ground * cos_az
     local[2] = up
@@ -39,7 +45,6 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     dphi_db = (-(b - a) / (2.0 * a * b) - s / b) / half_sin
     dground_dr = b * cos_phi * dphi_dr
     dground_db = sin_phi + b * cos_phi * dphi_db
-    J = np.zeros((3, 3))
     J[0, 0] = dground_dr * sin_az
     J[0, 1] = ground * cos_az
     J[0, 2] = dground_db * sin_az
@@ -47,12 +52,11 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     J[1, 1] = -ground * sin_az
     J[1, 2] = dground_db * cos_az
     J[2, 0] = -b * sin_phi * dphi_dr
+    J[2, 1] = 0.0
     J[2, 2] = cos_phi - b * sin_phi * dphi_db
-    var = np.empty(3)
     var[0] = var_r
     var[1] = var_az
     var[2] = var_h
-    local_cov = np.zeros((3, 3))
     if consistent:
         for i in range(3):
             for j in range(3):
@@ -61,6 +65,9 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
                     acc += J[i, k] * var[k] * J[j, k]
                 local_cov[i, j] = acc
     else:
+        for i in range(3):
+            for j in range(3):
+                local_cov[i, j] = 0.0
         spread = r * r + var_r
         local_cov[0, 0] = spread
         local_cov[1, 1] = spread
@@ -70,7 +77,6 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
         for k in range(3):
             acc += local[k] * rot[k, j]
         pos_out[j] = acc + origin[j]
-    tmp = np.zeros((3, 3))
     for i in range(3):
         for j in range(3):
             acc = 0.0
@@ -92,9 +98,10 @@ def convert_2d_batch(r, az, height, var_h, sensor_alt, earth, var_r, var_az, rot
     position = np.empty((count, 3))
     covariance = np.empty((count, 3, 3))
     consistent = np.empty(count, np.bool_)
+    work = np.empty((4, 3, 3))
     for k in range(count):
         consistent[k] = place_2d(r[k], az[k], height[k], sensor_alt, earth, var_r, var_az, var_h[k], rot, origin,
-                                 position[k], covariance[k])
+                                 position[k], covariance[k], work)
     return position, covariance, consistent
 
 
