@@ -312,7 +312,6 @@ def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_co
     m = ndim
     K = np.empty((n, m))
     y = np.empty(m)
-    A = np.empty((n, n))
     AP = np.empty((n, n))
     KR = np.empty((n, m))
     x_new = np.empty(n)
@@ -340,28 +339,23 @@ def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_co
             for a in range(m):
                 acc += K[i, a] * (pair_pos[c, a] - xp[2 * a])
             x_new[i] = acc
+        # Joseph form with A = I - K H and H selecting positions, without the products by 0 and 1:
+        # A P = P - K (H P);  A P A^T + K R K^T = A P + sum_a (K R - A P H^T)[:, a] K[:, a]^T
         for i in range(n):
             for jj in range(n):
-                A[i, jj] = 1.0 if i == jj else 0.0
-            for a in range(m):
-                A[i, 2 * a] -= K[i, a]
-        for i in range(n):
-            for jj in range(n):
-                acc = 0.0
-                for l in range(n):
-                    acc += A[i, l] * Pp[l, jj]
+                acc = Pp[i, jj]
+                for a in range(m):
+                    acc -= K[i, a] * Pp[2 * a, jj]
                 AP[i, jj] = acc
         for i in range(n):
             for a in range(m):
                 acc = 0.0
                 for b in range(m):
                     acc += K[i, b] * pair_cov[c, b, a]
-                KR[i, a] = acc
+                KR[i, a] = acc - AP[i, 2 * a]
         for i in range(n):
             for jj in range(n):
-                acc = 0.0
-                for l in range(n):
-                    acc += AP[i, l] * A[jj, l]
+                acc = AP[i, jj]
                 for a in range(m):
                     acc += KR[i, a] * K[jj, a]
                 P_new[i, jj] = acc
