@@ -213,3 +213,19 @@ def test_beam_crossing_time():
     # the beam points at az at phase + (k + az / 2 pi) period: 9.0 + {0, 1, 2, 3} -> first >= 9.5
     np.testing.assert_allclose(t, [13.0, 10.0, 11.0, 12.0])
     assert np.all((t >= 9.5) & (t < 9.5 + period))
+
+
+def test_plot_batch_parses_identity_codes_from_chunked_arrow_columns():
+    """A pandas str column backed by several Arrow chunks (as read from large files) parses
+    like a plain one: each code once, missing codes -1."""
+    import pyarrow as pa
+
+    chunked = pd.Series(pd.arrays.ArrowExtensionArray(
+        pa.chunked_array([pa.array(["7000", None]), pa.array(["0123"])]))).astype("str")
+    frame = pd.DataFrame({"time": [0.0, 1.0, 2.0], "sensor": "r", "range_m": 1.0, "azimuth_deg": 0.0,
+                          "mode3a": chunked, "mode_s": ["4840d6", None, "4840D6"]})
+    batch = PlotBatch.from_frame(frame, ["r"])
+    np.testing.assert_array_equal(batch.mode3a, [0o7000, -1, 0o123])
+    np.testing.assert_array_equal(batch.mode_s, [0x4840D6, -1, 0x4840D6])
+    with pytest.raises(ValueError, match=r"row 1, column mode3a: '7g00' is not an octal code"):
+        PlotBatch.from_frame(frame.assign(mode3a=["7000", "7g00", None]), ["r"])

@@ -13,18 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-
-def max_eigenvalue_sym(M: np.ndarray) -> np.ndarray:
-    """Largest eigenvalue of symmetric 2x2 or 3x3 matrices ``[K, d, d]`` (upper bound for 3x3).
-
-    2x2 is exact; for larger matrices the Gershgorin bound (max absolute row sum) is used,
-    which is all a search radius needs.
-    """
-    if M.shape[-1] == 2:
-        a, b, c = M[..., 0, 0], M[..., 0, 1], M[..., 1, 1]
-        half_trace = 0.5 * (a + c)
-        return half_trace + np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b * b, 0.0))
-    return np.max(np.sum(np.abs(M), axis=-1), axis=-1)
+from skytrack.core.linalg import max_eigenvalue_sym  # noqa: F401  (re-exported)
 
 
 def candidate_pairs(

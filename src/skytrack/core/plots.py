@@ -135,7 +135,10 @@ def _codes(frame: pd.DataFrame, column: str, base: int, source: str, first_row: 
 
     if column not in frame.columns:
         return np.full(len(frame), -1, dtype=np.int32)
-    encoded = pa.array(frame[column].astype("str"), type=pa.string(), from_pandas=True).dictionary_encode()
+    values = pa.array(frame[column].astype("str"), type=pa.string(), from_pandas=True)
+    if isinstance(values, pa.ChunkedArray):  # an Arrow-backed column may come in several chunks
+        values = values.combine_chunks()
+    encoded = values.dictionary_encode()
     texts = encoded.dictionary.to_pylist()
     parsed = np.empty(len(texts) + 1, dtype=np.int32)
     parsed[-1] = -1  # absent
@@ -145,8 +148,8 @@ def _codes(frame: pd.DataFrame, column: str, base: int, source: str, first_row: 
         except ValueError:
             indices = encoded.indices.to_numpy(zero_copy_only=False)
             row = first_row + int(np.flatnonzero(indices == k)[0])
-            kind = "octal" if base == 8 else "hexadecimal"
-            raise ValueError(f"{source}, row {row}, column {column}: {text!r} is not a {kind} code") from None
+            kind = "an octal" if base == 8 else "a hexadecimal"
+            raise ValueError(f"{source}, row {row}, column {column}: {text!r} is not {kind} code") from None
     indices = encoded.indices.fill_null(len(texts)).to_numpy(zero_copy_only=False)
     return parsed[indices]
 

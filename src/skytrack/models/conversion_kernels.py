@@ -58,37 +58,18 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     var[1] = var_az
     var[2] = var_h
     if consistent:
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += J[i, k] * var[k] * J[j, k]
-                local_cov[i, j] = acc
-    else:
-        for i in range(3):
-            for j in range(3):
-                local_cov[i, j] = 0.0
-        spread = r * r + var_r
-        local_cov[0, 0] = spread
-        local_cov[1, 1] = spread
-        local_cov[2, 2] = var_h + var_r
-    for j in range(3):
-        acc = 0.0
-        for k in range(3):
-            acc += local[k] * rot[k, j]
-        pos_out[j] = acc + origin[j]
+        _rotate(local, J, var, rot, origin, local_cov, tmp, pos_out, cov_out)
+        return consistent
+    # the height exceeds the slant range: the plot is somewhere within r of the radar
     for i in range(3):
         for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += rot[k, i] * local_cov[k, j]
-            tmp[i, j] = acc
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += tmp[i, k] * rot[k, j]
-            cov_out[i, j] = acc
+            J[i, j] = 0.0
+    spread = r * r + var_r
+    J[0, 0] = J[1, 1] = 1.0
+    J[2, 2] = 1.0
+    var[0] = var[1] = spread
+    var[2] = var_h + var_r
+    _rotate(local, J, var, rot, origin, local_cov, tmp, pos_out, cov_out)
     return consistent
 
 

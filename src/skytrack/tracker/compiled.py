@@ -74,13 +74,7 @@ class CompiledStages:
         sensor = self.sensors.sensors[s]
         schedule = self.schedule
         storage, columns = bank.storage, bank.column_storage
-        psi_enabled = isinstance(storage, ManoeuvreState)
-        if psi_enabled:
-            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
-            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
-        else:
-            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
-            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
+        psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
         margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
@@ -120,6 +114,15 @@ class CompiledStages:
             if stage == 1:
                 self.stats["manoeuvre_gate_hits"] += len(rows)
             stage += 1
+
+    def _switch_arrays(self):
+        """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""
+        storage = self.bank.storage
+        if isinstance(storage, ManoeuvreState):
+            filt = self.filter
+            return (True, storage.psi, storage.nis_avg, storage.n_updates, float(filt.scale), filt.on, filt.off,
+                    filt.memory)
+        return False, self._no_psi, np.zeros(1), np.zeros(1, np.int64), 1.0, 0.0, 0.0, 0.0
 
     def _expect_compiled(self, s: int, w_start: float, w_end: float):
         bank = self.bank
@@ -181,15 +184,8 @@ class CompiledStages:
         dim = self.dim
         sensor = self.sensors.sensors[s]
         schedule = self.schedule
-        storage = bank.storage
-        columns = bank.column_storage
-        psi_enabled = isinstance(storage, ManoeuvreState)
-        if psi_enabled:
-            psi, nis_avg, filter_updates = storage.psi, storage.nis_avg, storage.n_updates
-            q_big, on, off, memory = float(self.filter.scale), self.filter.on, self.filter.off, self.filter.memory
-        else:
-            psi, nis_avg, filter_updates = self._no_psi, np.zeros(1), np.zeros(1, np.int64)
-            q_big, on, off, memory = 1.0, 0.0, 0.0, 0.0
+        storage, columns = bank.storage, bank.column_storage
+        psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
         margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
