@@ -46,6 +46,8 @@ from pathlib import Path
 ONE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")}
 os.environ.update(ONE_THREAD)  # the build in this process too
 
+sys.path.insert(0, str(Path(__file__).parent))
+from machine import cpu_model, usable_cores, versions  # noqa: E402  (benchmarks/machine.py)
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
@@ -154,23 +156,10 @@ def track_command(plots: Path, sensors: Path, out: Path, chunk_rows: int | None)
 
 # ------------------------------------------------------------------------------- report
 def machine() -> dict:
-    model = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    versions = {}
-    for name in ("skytrack", "numpy", "pandas", "pyarrow", "numba"):
-        try:
-            versions[name] = __import__(name).__version__
-        except ImportError:
-            pass
+    model, usable = cpu_model(), usable_cores()
+    found = versions(("skytrack", "numpy", "pandas", "pyarrow", "numba"))
     return {"cpu": model, "cores": os.cpu_count(), "usable": usable, "system": platform.platform(),
-            "python": platform.python_version(), "versions": versions}
+            "python": platform.python_version(), "versions": found}
 
 
 def mib(path: Path) -> str:

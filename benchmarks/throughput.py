@@ -44,6 +44,7 @@ from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
 import scenes  # noqa: E402  (benchmarks/scenes.py, next to this file)
+from machine import cpu_model, usable_cores, versions  # noqa: E402  (benchmarks/machine.py)
 from skytrack.sim import simulate  # noqa: E402
 from skytrack.core.plots import PlotBatch  # noqa: E402
 from skytrack.tracker import Tracker, TrackerConfig  # noqa: E402
@@ -60,23 +61,10 @@ REFERENCE = "sparse-1000"
 
 
 def machine() -> str:
-    model = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    versions = []
-    for name in ("numpy", "numba", "pandas"):
-        try:
-            versions.append(f"{name} {__import__(name).__version__}")
-        except ImportError:
-            versions.append(f"{name} absent")
-    return (f"{model}, {os.cpu_count()} cores ({usable} usable, the benchmark uses 1); "
-            f"Python {platform.python_version()}, {', '.join(versions)}; {platform.platform()}")
+    found = versions(("numpy", "numba", "pandas"))
+    listed = ", ".join(f"{name} {version}" for name, version in found.items())
+    return (f"{cpu_model()}, {os.cpu_count()} cores ({usable_cores()} usable, the benchmark uses 1); "
+            f"Python {platform.python_version()}, {listed}; {platform.platform()}")
 
 
 def track_once(sensors, plots):
