@@ -57,35 +57,31 @@ def sweep_pairs(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, scal
         for k in range(lo, hi):
             j = narrow[order[k]]
             radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
-            d2 = 0.0
-            for c in range(dim):
-                diff = plot_pos[j, c] - track_pos[t, c]
-                d2 += diff * diff
-            if d2 <= radius * radius:
-                if count == capacity:
-                    capacity *= 2
-                    out_t = _grow(out_t, capacity)
-                    out_p = _grow(out_p, capacity)
-                out_t[count] = t
-                out_p[count] = j
-                count += 1
+            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count)
     for k in range(n_wide):
         j = wide[k]
         for t in range(n_tracks):
             radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
-            d2 = 0.0
-            for c in range(dim):
-                diff = plot_pos[j, c] - track_pos[t, c]
-                d2 += diff * diff
-            if d2 <= radius * radius:
-                if count == capacity:
-                    capacity *= 2
-                    out_t = _grow(out_t, capacity)
-                    out_p = _grow(out_p, capacity)
-                out_t[count] = t
-                out_p[count] = j
-                count += 1
+            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count)
     return out_t[:count], out_p[:count]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count):
+    """Append the pair (t, j) to ``out_t``/``out_p`` (grown when full) if the plot lies within
+    ``radius`` of the track; returns the arrays and the new count."""
+    d2 = 0.0
+    for c in range(dim):
+        diff = plot_pos[j, c] - track_pos[t, c]
+        d2 += diff * diff
+    if d2 <= radius * radius:
+        if count == len(out_t):
+            out_t = _grow(out_t, 2 * count + 16)
+            out_p = _grow(out_p, 2 * count + 16)
+        out_t[count] = t
+        out_p[count] = j
+        count += 1
+    return out_t, out_p, count
 
 
 @njit(cache=True, nogil=True)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from skytrack.association.kernels import add_if_within
 from skytrack.models.conversion_kernels import place_2d
 
 
@@ -180,18 +181,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             for s in range(lo, hi):
                 j = plot_order[s]
                 radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
-                d2 = 0.0
-                for a in range(ndim):
-                    diff = plot_pos[j, a] - ref_pos[k, a]
-                    d2 += diff * diff
-                if d2 <= radius * radius:
-                    if count == capacity:
-                        capacity *= 2
-                        out_t = _grow(out_t, capacity)
-                        out_p = _grow(out_p, capacity)
-                    out_t[count] = k
-                    out_p[count] = j
-                    count += 1
+                out_t, out_p, count = add_if_within(ref_pos, plot_pos, k, j, radius, ndim, out_t, out_p, count)
     # 3.-5. exact gate of every candidate at its plot's time; pairs inside are written to the
     #       next free slot ``m`` (compaction as we go, no fancy indexing afterwards)
     x_pred = np.empty((count, n))
@@ -288,12 +278,6 @@ def _first_above(values, lo, hi, target):
         n -= half
     return base + (1 if values[base] <= target else 0)
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _grow(values, capacity):
-    out = np.empty(capacity, values.dtype)
-    out[: len(values)] = values
-    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
