@@ -241,3 +241,13 @@ def test_counts_follow_the_broadcast_batch(rng, case):
         out = call()
     assert len(out) == K  # the values are batched ...
     assert ops.madds == expected  # ... the count is not
+
+
+def test_matvec_broadcasts_a_shared_matrix_over_a_batch_of_vectors(rng):
+    """F [n, n] shared by vectors x [K, n] (the case a plain ``@`` gets wrong), counted per row."""
+    F = rng.standard_normal((4, 4))
+    x = rng.standard_normal((10, 4))
+    with linalg.counting() as ops:
+        out = linalg.matvec(F, x)
+    np.testing.assert_allclose(out, x @ F.T, rtol=1e-13)
+    assert ops.madds == 10 * 4 * 4

@@ -81,6 +81,14 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def matvec(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Stacked matrix-vector product ``a[..., m, n] v[..., n]`` (either side may be shared)."""
+    out = np.einsum("...ij,...j->...i", a, v)
+    if _active:
+        _count("matvec", _batch(a.shape[:-2], v.shape[:-1]) * a.shape[-2] * a.shape[-1])
+    return out
+
+
 def symmetrize(P: np.ndarray) -> np.ndarray:
     """``(P + P^T) / 2`` over the last two axes."""
     return 0.5 * (P + np.swapaxes(P, -1, -2))

@@ -1,4 +1,8 @@
-"""Batched (extended) Kalman filter steps over a bank of N tracks stored as arrays.
+"""Stateless batched (extended) Kalman filter steps, used by the spec 000 filters and the gate.
+
+The filter families of the tracker implement the batched protocol (:mod:`skytrack.filters.kalman`);
+these functions are the same steps on bare arrays.  Every product and solve goes through the
+one linear-algebra layer, :mod:`skytrack.core.linalg` (so ``counting()`` sees them too).
 
 DESIGN.md rule 1: states ``x[N, n]``, covariances ``P[N, n, n]``; every function here
 is vectorised over the leading axis (no Python loop over tracks).
@@ -19,20 +23,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skytrack.core import linalg
 from skytrack.geo.polar import wrap_angle
 
 UPDATE_FORMS = ("joseph", "standard")
 
 
-def symmetrize(P: np.ndarray) -> np.ndarray:
-    return 0.5 * (P + np.swapaxes(P, -1, -2))
+symmetrize = linalg.symmetrize
 
 
 def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Predict states ``x[N, n]`` and covariances ``P[N, n, n]`` with ``F, Q`` ``[N, n, n]`` (or shared)."""
-    x_pred = np.einsum("...ij,...j->...i", F, x)
-    P_pred = F @ P @ np.swapaxes(F, -1, -2) + Q
-    return x_pred, symmetrize(P_pred)
+    return linalg.matvec(F, x), linalg.sandwich(F, P, Q)
 
 
 def innovation(z: np.ndarray, h: np.ndarray, angular: np.ndarray | None = None) -> np.ndarray:
@@ -45,14 +47,13 @@ def innovation(z: np.ndarray, h: np.ndarray, angular: np.ndarray | None = None) 
 
 
 def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
-    return symmetrize(H @ P @ np.swapaxes(H, -1, -2) + R)
+    return linalg.sandwich(H, P, R)
 
 
 def mahalanobis(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Squared Mahalanobis distances ``nu^T S^-1 nu`` for ``nu[K, m]``, ``S[K, m, m]``."""
-    L = np.linalg.cholesky(S)
-    w = np.linalg.solve(L, nu[..., None])[..., 0]
-    return np.einsum("...i,...i->...", w, w)
+    """Squared Mahalanobis distances ``nu^T S^-1 nu`` for ``nu[K, m]``, ``S[K, m, m]``
+    (ValueError when an ``S`` is not positive definite)."""
+    return linalg.mahalanobis_chol(nu, linalg.cholesky(S))
 
 
 @dataclass
@@ -82,19 +83,17 @@ def update(
     if not (np.all(np.isfinite(nu[mask] if mask is not None else nu))):
         raise ValueError("non-finite measurement or innovation in Kalman update")
     S = innovation_covariance(P, H, R)
-    Ht = np.swapaxes(H, -1, -2)
-    PHt = P @ Ht
+    L = linalg.cholesky(S)
+    PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
     # K^T = S^-1 (P H^T)^T, S symmetric
-    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
-    d2 = np.einsum("...i,...i->...", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-    x_new = x + np.einsum("...ij,...j->...i", K, nu)
+    K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
+    d2 = linalg.mahalanobis_chol(nu, L)
+    x_new = x + linalg.matvec(K, nu)
     if form == "joseph":
-        n = x.shape[-1]
-        A = np.eye(n) - K @ H
-        P_new = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+        A = np.eye(x.shape[-1]) - linalg.matmul(K, H)
+        P_new = linalg.sandwich(A, P, linalg.sandwich(K, R))
     else:
-        P_new = P - K @ S @ np.swapaxes(K, -1, -2)
-    P_new = symmetrize(P_new)
+        P_new = linalg.symmetrize(P - linalg.matmul(linalg.matmul(K, S), np.swapaxes(K, -1, -2)))
     if mask is not None:
         mask = np.asarray(mask, dtype=bool)
         x_new = np.where(mask[..., None], x_new, x)

@@ -84,7 +84,7 @@ class KalmanFilter(BatchFilter):
         Q = model.Q_batch(step) * scale[:, None, None]
         if backwards.any():
             F[backwards] = np.linalg.inv(F[backwards])
-        return GaussianState(linalg.matmul(F, x), linalg.sandwich(F, P, Q))
+        return GaussianState(linalg.matvec(F, x), linalg.sandwich(F, P, Q))
 
     # -------------------------------------------------------------------- innovate
     def innovate(self, state: GaussianState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
@@ -123,7 +123,7 @@ class KalmanFilter(BatchFilter):
         else:
             PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
             K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
-            x_new = x + linalg.matmul(K, nu)
+            x_new = x + linalg.matvec(K, nu)
             if self.form == "joseph":
                 A = np.eye(x.shape[-1]) - linalg.matmul(K, H)
                 P_new = linalg.sandwich(A, P, linalg.sandwich(K, R))
