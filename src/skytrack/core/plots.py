@@ -77,13 +77,12 @@ class PlotBatch:
         if sensor_names is None:
             sensor_index = np.zeros(count, dtype=np.int16)
         else:
-            names = frame["sensor"].astype(str).to_numpy()
+            codes, uniques = _dictionary(frame["sensor"])
             lookup = {name: i for i, name in enumerate(sensor_names)}
-            codes, uniques = pd.factorize(names)
-            unknown = [u for u in uniques if u not in lookup]
+            unknown = [k for k, u in enumerate(uniques) if u not in lookup]
             if unknown:
-                first = first_row + int(np.flatnonzero(names == unknown[0])[0])
-                raise ValueError(f"{source}, row {first}, column sensor: unknown sensor {unknown[0]!r} "
+                first = first_row + int(np.flatnonzero(codes == unknown[0])[0])
+                raise ValueError(f"{source}, row {first}, column sensor: unknown sensor {uniques[unknown[0]]!r} "
                                  f"(sensors.json has: {', '.join(sensor_names)})")
             sensor_index = (np.array([lookup[u] for u in uniques], dtype=np.int16)[codes] if count
                             else np.zeros(0, np.int16))
@@ -100,7 +99,8 @@ class PlotBatch:
             mode3a=_codes(frame, "mode3a", 8, source, first_row),
             mode_s=_codes(frame, "mode_s", 16, source, first_row),
             iff=_iff_codes(frame, source, first_row),
-            platform=np.column_stack([numeric(c) for c in PLATFORM_COLUMNS]) if count else np.zeros((0, 6)),
+            platform=(np.column_stack([numeric(c) for c in PLATFORM_COLUMNS])
+                      if any(c in frame.columns for c in PLATFORM_COLUMNS) else np.full((count, 6), np.nan)),
             row=first_row + np.arange(count, dtype=np.int64),
         )
         if not check:
@@ -127,6 +127,17 @@ def _text(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray]:
     values = frame[column].astype(object).to_numpy()
     present = ~pd.isna(values)
     return values, present
+
+
+def _dictionary(column: pd.Series) -> tuple[np.ndarray, list[str]]:
+    """Dictionary codes of a text column and its distinct values (pyarrow hashing; null as "None")."""
+    import pyarrow as pa
+
+    values = pa.array(column.astype("str"), type=pa.string(), from_pandas=True)
+    if isinstance(values, pa.ChunkedArray):
+        values = values.combine_chunks()
+    encoded = values.fill_null("None").dictionary_encode()
+    return encoded.indices.to_numpy(zero_copy_only=False), encoded.dictionary.to_pylist()
 
 
 def _codes(frame: pd.DataFrame, column: str, base: int, source: str, first_row: int) -> np.ndarray:
