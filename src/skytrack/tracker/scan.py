@@ -12,6 +12,10 @@ A window of one sensor is processed as a composition of parts:
    costs the pairs, the assigner chooses, and the filter updates the chosen pairs;
 4. expected tracks without a plot record a miss (no update: spec 000 R4);
 5. plots left over start tentative tracks; M-of-N confirmation and deletion.
+
+This composition works for every registered filter, scorer and assigner and is the reference.
+The common configuration runs the same steps through compiled kernels instead
+(:mod:`skytrack.tracker.compiled`, mixed in here); tests hold the two equal.
 """
 
 from __future__ import annotations
