@@ -47,3 +47,14 @@ def test_imm_runs_inside_the_tracker(crossing):
     assert tracks["track_id"].nunique() >= 0.8 * baseline["track_id"].nunique()
     mu = tracker.bank.state.mu
     np.testing.assert_allclose(mu.sum(axis=1), 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("scenario", ["radar3d", "two_radars"])
+def test_compiled_parts_equal_the_reference_on_other_radars(scenario):
+    """A 3-D radar with Doppler (composed path with compiled search, assignment and Kalman
+    kernels) and two merged radars in sectors (the fused path): the same tracks as the reference."""
+    result = simulate(load_scenario(scenario))
+    tracks = Tracker(result.sensors, TrackerConfig()).run(result.plots)
+    reference = Tracker(result.sensors, _reference()).run(result.plots)
+    assert len(tracks) > 100
+    pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)

@@ -1,10 +1,10 @@
 """Compiled (numba, cached) association kernels, with numpy/scipy references elsewhere.
 
-* :func:`sweep_pairs` — candidate (track, plot) pairs within ``scale (s_t + s_p) + margin_t``:
-  plots sorted by x once per call, each track scans the x-interval of its largest possible
-  radius (a sort-and-sweep spatial index); plots whose spread is far above the batch's
-  (``wide``) are checked against every track instead, so they do not widen every search.
-  Reference: :func:`skytrack.association.candidates.candidate_pairs` (k-d trees).
+* :func:`sweep_pairs` — the pairs of :func:`skytrack.association.candidates.candidate_pairs`
+  (k-d trees, the reference) by a sort and sweep: plots sorted by x once per call, each track
+  takes the plots within ``scale (s_t + s_narrow) + margin_t`` (``s_narrow`` the largest spread
+  of the ordinary plots); plots whose spread is above the batch's ``wide_limit`` take the
+  tracks within ``scale (s_p + max s_t) + max margin``, so they do not widen every search.
 * :func:`assign_clusters` — global nearest neighbour: union-find over the gated pairs gives
   the clusters; a lone pair is taken when it costs no more than leaving its track
   unassigned; clusters up to ``max_dense`` tracks plus plots are solved exactly by a
@@ -56,12 +56,16 @@ def sweep_pairs(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, scal
         hi = np.searchsorted(xs_sorted, track_pos[t, 0] + reach, side="right")
         for k in range(lo, hi):
             j = narrow[order[k]]
-            radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
-            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count)
+            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, reach, dim, out_t, out_p, count)
+    sigma_max = 0.0
+    margin_max = 0.0
+    for t in range(n_tracks):
+        sigma_max = max(sigma_max, track_sigma[t])
+        margin_max = max(margin_max, track_margin[t])
     for k in range(n_wide):
         j = wide[k]
+        radius = scale * (plot_sigma[j] + sigma_max) + margin_max
         for t in range(n_tracks):
-            radius = scale * (track_sigma[t] + plot_sigma[j]) + track_margin[t]
             out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count)
     return out_t[:count], out_p[:count]
 
