@@ -29,6 +29,7 @@ def print_demo_checks(console: Console, result) -> None:
         f"{checks['position_rmse_mode_c_aircraft_m']:.1f} m / {checks['position_rmse_primary_only_aircraft_m']:.1f} m",
         "",
     )
-    table.add_row("tracking throughput", f"{summary.plots_per_s:,.0f} plots/s", "")
+    # the first run on a machine also compiles the tracker's kernels into numba's cache
+    table.add_row("tracking throughput (a first run includes compiling)", f"{summary.plots_per_s:,.0f} plots/s", "")
     table.add_row("report folder", str(result.out), f"{result.elapsed_s:.1f} s")
     console.print(table)
