@@ -58,3 +58,14 @@ def test_compiled_parts_equal_the_reference_on_other_radars(scenario):
     reference = Tracker(result.sensors, _reference()).run(result.plots)
     assert len(tracks) > 100
     pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)
+
+
+def test_large_clusters_through_the_sparse_solver_equal_the_reference(crossing, monkeypatch):
+    """With the dense limit lowered, every multi-pair cluster of the compiled window goes back to
+    Python's sparse matching and its update: the tracks stay those of the reference."""
+    import skytrack.tracker.compiled as compiled
+
+    monkeypatch.setattr(compiled, "MAX_DENSE_CLUSTER", 2)
+    tracks = Tracker(crossing.sensors, TrackerConfig()).run(crossing.plots)
+    reference = Tracker(crossing.sensors, _reference()).run(crossing.plots)
+    pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)

@@ -75,7 +75,7 @@ class CompiledStages:
         schedule = self.schedule
         storage, columns = bank.storage, bank.column_storage
         psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
-        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        margin_s = schedule.time_margin(s)
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
         miss = self.scorer.gate(dim + 1)
@@ -99,21 +99,29 @@ class CompiledStages:
             if stage == 3:
                 return
             # clusters too large for the dense solver: one sparse matching, then their updates
-            rows, plot_rows, d2, x_pred, P_pred, chol, position, covariance = big
+            rows, plot_rows, d2 = big[:3]
             chosen = sparse_assignment(rows, plot_rows, d2, np.full(len(bank), miss))
             rows, plot_rows = rows[chosen], plot_rows[chosen]
-            update_write_cv(
-                rows, plot_rows, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
-                covariance[chosen], dim, stage == 1, psi_enabled, on, off, memory, two_point, storage.x, storage.P,
-                psi, nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"],
-                columns["z_hint"], columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"],
-                columns["iff"], plots.time, plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
-            )
+            self._update_chosen(rows, plot_rows, big, chosen, stage == 1, two_point, plots)
             hit[rows] = True
             plot_used[plot_rows] = True
             if stage == 1:
                 self.stats["manoeuvre_gate_hits"] += len(rows)
             stage += 1
+
+    def _update_chosen(self, rows, plot_rows, big, chosen, forced: bool, two_point: bool, plots: PlotBatch) -> None:
+        """Kalman update and bank columns of the ``chosen`` pairs of large clusters (``big`` is what the
+        stage kernel returned for them: pair indices, ``d^2``, prediction, Cholesky factor, measurement)."""
+        _, _, d2, x_pred, P_pred, chol, position, covariance = big
+        storage, columns = self.bank.storage, self.bank.column_storage
+        psi_enabled, psi, nis_avg, filter_updates, _, on, off, memory = self._switch_arrays()
+        update_write_cv(
+            rows, plot_rows, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
+            covariance[chosen], self.dim, forced, psi_enabled, on, off, memory, two_point, storage.x, storage.P, psi,
+            nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"], columns["z_hint"],
+            columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"], columns["iff"], plots.time,
+            plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+        )
 
     def _switch_arrays(self):
         """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""
@@ -186,7 +194,7 @@ class CompiledStages:
         schedule = self.schedule
         storage, columns = bank.storage, bank.column_storage
         psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
-        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        margin_s = schedule.time_margin(s)
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
         miss = self.scorer.gate(dim + 1)
@@ -202,18 +210,12 @@ class CompiledStages:
             columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
         )
         self.stats["candidate_pairs"] += candidates
-        big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = big
+        big_t, big_p, d2 = big[:3]
         if len(big_t):
             # clusters too large for the dense solver: one sparse matching, then their updates
             chosen = sparse_assignment(big_t, big_p, d2, np.full(len(tracks), miss))
             extra_rows, extra_plots = tracks[big_t[chosen]], free[big_p[chosen]]
-            update_write_cv(
-                extra_rows, extra_plots, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
-                covariance[chosen], dim, manoeuvre, psi_enabled, on, off, memory, two_point, storage.x, storage.P, psi,
-                nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"], columns["z_hint"],
-                columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"], columns["iff"], plots.time,
-                plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
-            )
+            self._update_chosen(extra_rows, extra_plots, big, chosen, manoeuvre, two_point, plots)
             rows, plot_rows = np.concatenate([rows, extra_rows]), np.concatenate([plot_rows, extra_plots])
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)

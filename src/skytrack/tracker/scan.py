@@ -230,7 +230,7 @@ class ScanProcessor(CompiledStages):
         sigma_plot = np.sqrt(np.maximum(max_eigenvalue_sym(plot_cov), 0.0))
         speed = np.linalg.norm(reference.x[:, self.vel], axis=1)
         schedule = self.schedule
-        margin_s = 0.01 * schedule.period[s] + 0.05 if schedule.rotating[s] else 0.5 * schedule.window_length[s]
+        margin_s = schedule.time_margin(s)
         plot_positions = converted.position[free][:, :dim]
         search = sweep_candidates if self.config.association.compiled else candidate_pairs
         ti_local, pj_local = search(reference.x[:, self.pos], sigma_track, speed * margin_s + 1.0, plot_positions,

@@ -190,6 +190,13 @@ class Schedule:
             windows.append((s, k, start, start + self.window_length[s], slice(a, b)))
         return order, windows, np.flatnonzero(~taken)
 
+    def time_margin(self, s: int) -> float:
+        """How far (s) a plot's time may be from a track's reference time in a window of sensor ``s``:
+        a hundredth of the scan plus 50 ms for a rotating radar, half a window otherwise."""
+        if self.rotating[s]:
+            return 0.01 * self.period[s] + 0.05
+        return 0.5 * self.window_length[s]
+
     # ------------------------------------------------------------------ expectations
     def expectations(self, s: int, w_start: float, w_end: float, position: np.ndarray, last_event: np.ndarray,
                      created: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

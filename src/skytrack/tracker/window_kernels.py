@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.tracker.kernels import _predict_cv_row
+from skytrack.tracker.kernels import _max_eig_sym, _predict_cv_row
 
 _BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
 
@@ -113,16 +113,7 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
         for a in range(dim):
             for b in range(dim):
                 block[a, b] = P[k, pos_index[a], pos_index[b]]
-        if dim == 2:
-            p, q, r = block[0, 0], block[0, 1], block[1, 1]
-            largest = 0.5 * (p + r) + np.sqrt(max(0.25 * (p - r) ** 2 + q * q, 0.0))
-        else:
-            largest = 0.0
-            for a in range(dim):
-                total = 0.0
-                for b in range(dim):
-                    total += abs(block[a, b])
-                largest = max(largest, total)
+        largest = _max_eig_sym(block, dim)
         if n_misses[k] >= delete_misses or np.sqrt(max(largest, 0.0)) > max_sigma:
             keep[k] = False
             lost += 1
