@@ -176,8 +176,8 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 lo, hi = first, last  # a few plots: checking them all is cheaper than searching
             else:
                 reach = search_scale * (sigma_t[k] + class_max[c]) + margin[k]
-                lo = _first_not_below(xs_sorted, first, last, ref_pos[k, 0] - reach)
-                hi = _first_above(xs_sorted, lo, last, ref_pos[k, 0] + reach)
+                lo = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] - reach)
+                hi = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] + reach, side="right")
             for s in range(lo, hi):
                 j = plot_order[s]
                 radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
@@ -246,37 +246,6 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             kept_p[m] = j
             m += 1
     return (kept_t[:m], kept_p[:m], d2_out[:m], x_pred[:m], P_pred[:m], pair_pos[:m], pair_cov[:m], L[:m], count)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _first_not_below(values, lo, hi, target):
-    """First index in [lo, hi) of sorted ``values`` with ``values[i] >= target`` (hi if none).
-
-    Branch-free halving (the comparison selects the base without a jump), which keeps a
-    search per track and class cheap where a branchy binary search mispredicts."""
-    n = hi - lo
-    if n <= 0:
-        return lo
-    base = lo
-    while n > 1:
-        half = n >> 1
-        base = base + half if values[base + half] < target else base
-        n -= half
-    return base + (1 if values[base] < target else 0)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _first_above(values, lo, hi, target):
-    """First index in [lo, hi) of sorted ``values`` with ``values[i] > target`` (hi if none)."""
-    n = hi - lo
-    if n <= 0:
-        return lo
-    base = lo
-    while n > 1:
-        half = n >> 1
-        base = base + half if values[base + half] <= target else base
-        n -= half
-    return base + (1 if values[base] <= target else 0)
 
 
 
