@@ -1,5 +1,5 @@
 """Benchmark: evaluate() on n_truth truths x n_steps output instants (not a unit test)."""
-import sys, time
+import time
 import numpy as np, pandas as pd
 from skytrack.analysis.evaluate import evaluate
 

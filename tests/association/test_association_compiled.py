@@ -1,4 +1,4 @@
-"""Compiled association kernels against their references: the sort-and-sweep candidate search
+"""Compiled association kernels against their references: the grid candidate search
 against the k-d tree search, the compiled GNN (clusters + shortest augmenting path + sparse
 matching for large clusters) against ``assign_gnn`` (scipy's dense assignment per cluster)."""
 
@@ -11,7 +11,7 @@ from skytrack.association import gnn
 from skytrack.association.base import PairScores, Pairs
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.gnn import GNNAssigner, assign_gnn, sparse_assignment
-from skytrack.association.kernels import sweep_candidates
+from skytrack.association.grid_kernels import grid_candidates
 
 
 def _total_cost(chosen, ti, cost, miss, n_tracks):
@@ -71,9 +71,9 @@ def test_pairs_outside_the_gate_are_never_chosen():
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_sweep_candidates_hold_every_pair_within_the_bound(dim):
-    """Both searches return every pair within scale (s_t + s_p) + margin (the gate bound);
-    plots with a huge spread (not placeable) are found from their own side."""
+def test_grid_candidates_hold_every_pair_within_the_bound(dim):
+    """Both searches return every pair within scale (s_t + s_p) + margin (the gate bound), and
+    the same pairs; plots with a huge spread (not placeable) are found from their own side."""
     rng = np.random.default_rng(dim)
     for _ in range(20):
         tracks = rng.uniform(-5e4, 5e4, (200, dim))
@@ -85,8 +85,11 @@ def test_sweep_candidates_hold_every_pair_within_the_bound(dim):
         within = np.linalg.norm(tracks[:, None, :] - plots[None, :, :], axis=-1) <= scale * (
             s_t[:, None] + s_p[None, :]) + margin[:, None]
         expected = set(zip(*np.nonzero(within)))
-        for search in (candidate_pairs, sweep_candidates):
+        results = []
+        for search in (candidate_pairs, grid_candidates):
             a, b = search(tracks, s_t, margin, plots, s_p, scale)
             found = set(zip(a.tolist(), b.tolist()))
             assert expected <= found
             assert len(found) == len(a)  # no pair twice
+            results.append(found)
+        assert results[0] == results[1]  # the same radii: the same pairs

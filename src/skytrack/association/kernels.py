@@ -1,10 +1,7 @@
 """Compiled (numba, cached) association kernels, with numpy/scipy references elsewhere.
 
-* :func:`sweep_pairs` — the pairs of :func:`skytrack.association.candidates.candidate_pairs`
-  (k-d trees, the reference) by a sort and sweep: plots sorted by x once per call, each track
-  takes the plots within ``scale (s_t + s_narrow) + margin_t`` (``s_narrow`` the largest spread
-  of the ordinary plots); plots whose spread is above the batch's ``wide_limit`` take the
-  tracks within ``scale (s_p + max s_t) + max margin``, so they do not widen every search.
+* :func:`add_if_within` — the radius check of a candidate search
+  (:mod:`skytrack.association.grid_kernels` holds the search itself);
 * :func:`assign_clusters` — global nearest neighbour: union-find over the gated pairs gives
   the clusters; a lone pair is taken when it costs no more than leaving its track
   unassigned; clusters up to ``max_dense`` tracks plus plots are solved exactly by a
@@ -17,57 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-
-
-@njit(cache=True, nogil=True)
-def sweep_pairs(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, scale, wide_limit):
-    n_tracks, dim = track_pos.shape
-    n_plots = plot_pos.shape[0]
-    narrow_max = 0.0
-    n_wide = 0
-    for j in range(n_plots):
-        if plot_sigma[j] > wide_limit:
-            n_wide += 1
-        elif plot_sigma[j] > narrow_max:
-            narrow_max = plot_sigma[j]
-    narrow = np.empty(n_plots - n_wide, np.int64)
-    wide = np.empty(n_wide, np.int64)
-    a = 0
-    b = 0
-    for j in range(n_plots):
-        if plot_sigma[j] > wide_limit:
-            wide[b] = j
-            b += 1
-        else:
-            narrow[a] = j
-            a += 1
-    xs = np.empty(len(narrow))
-    for k in range(len(narrow)):
-        xs[k] = plot_pos[narrow[k], 0]
-    order = np.argsort(xs)
-    xs_sorted = xs[order]
-    capacity = 4 * (n_tracks + n_plots) + 16
-    out_t = np.empty(capacity, np.int64)
-    out_p = np.empty(capacity, np.int64)
-    count = 0
-    for t in range(n_tracks):
-        reach = scale * (track_sigma[t] + narrow_max) + track_margin[t]
-        lo = np.searchsorted(xs_sorted, track_pos[t, 0] - reach)
-        hi = np.searchsorted(xs_sorted, track_pos[t, 0] + reach, side="right")
-        for k in range(lo, hi):
-            j = narrow[order[k]]
-            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, reach, dim, out_t, out_p, count)
-    sigma_max = 0.0
-    margin_max = 0.0
-    for t in range(n_tracks):
-        sigma_max = max(sigma_max, track_sigma[t])
-        margin_max = max(margin_max, track_margin[t])
-    for k in range(n_wide):
-        j = wide[k]
-        radius = scale * (plot_sigma[j] + sigma_max) + margin_max
-        for t in range(n_tracks):
-            out_t, out_p, count = add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count)
-    return out_t[:count], out_p[:count]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -240,16 +186,3 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
             plot_local[pj[k]] = -1
         start = stop
     return chosen, big
-
-
-def sweep_candidates(track_positions, track_sigma, track_margin, plot_positions, plot_sigma, scale,
-                     wide_quantile: float = 0.95):
-    """Compiled counterpart of :func:`skytrack.association.candidates.candidate_pairs` (same arguments)."""
-    n_plots = len(plot_positions)
-    if len(track_positions) == 0 or n_plots == 0:
-        empty = np.zeros(0, dtype=np.intp)
-        return empty, empty
-    limit = float(np.quantile(plot_sigma, wide_quantile)) if n_plots > 20 else np.inf
-    return sweep_pairs(np.ascontiguousarray(track_positions, dtype=float), np.asarray(track_sigma, dtype=float),
-                       np.asarray(track_margin, dtype=float), np.ascontiguousarray(plot_positions, dtype=float),
-                       np.asarray(plot_sigma, dtype=float), float(scale), limit)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 
 from skytrack.association.gnn import MAX_DENSE_CLUSTER, sparse_assignment
-from skytrack.core.linalg import max_eigenvalue_sym
 from skytrack.core.plots import PlotBatch
 from skytrack.filters.base import GaussianState
 from skytrack.filters.kalman import KalmanFilter
@@ -28,11 +27,6 @@ from skytrack.tracker.kernels import update_write_cv
 from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.stage_kernel import stage_cv, stages_cv
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
-
-#: spread classes of the compiled search: [0, 64 m), [64, 256 m), ... by factors of 4, the last open
-SPREAD_BASE_M = 16.0
-SPREAD_CLASSES = 8
-
 
 class CompiledStages:
     """Compiled counterparts of :class:`~skytrack.tracker.scan.ScanProcessor`'s steps."""
@@ -79,13 +73,11 @@ class CompiledStages:
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
         miss = self.scorer.gate(dim + 1)
-        classes = self._spread_classes(converted.covariance)
-        window_order = np.lexsort((converted.position[:, 0], classes))
         stage = 0
         while True:
             stage, candidates, manoeuvre_hits, *big = stages_cv(
-                stage, self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, window_order, classes,
-                SPREAD_CLASSES, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, plots.time,
+                stage, self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P,
+                columns["t"], columns["alt_m"], psi, q_big, plots.time,
                 converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
                 self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim), replace_height,
                 float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
@@ -201,7 +193,7 @@ class CompiledStages:
         rows, plot_rows, candidates, *big = stage_cv(
             tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
             plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-            *self._search_order(converted, free), self.fused_q, dim, self.search_scale, margin_s,
+            self.fused_q, dim, self.search_scale, margin_s,
             self.scorer.gate(dim), replace_height,
             float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
             sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
@@ -220,18 +212,6 @@ class CompiledStages:
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows
-
-    def _search_order(self, converted: ConvertedPlots, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Plots of ``free`` sorted by spread class, then x, and where each class starts."""
-        classes = self._spread_classes(converted.covariance[free])
-        order = np.lexsort((converted.position[free, 0], classes))
-        return order, np.searchsorted(classes[order], np.arange(SPREAD_CLASSES + 1))
-
-    def _spread_classes(self, covariance: np.ndarray) -> np.ndarray:
-        """Spread class of each plot for the compiled search: floor(log4(spread / base)), clipped."""
-        spread = np.sqrt(np.maximum(max_eigenvalue_sym(np.ascontiguousarray(covariance[:, : self.dim, : self.dim])), 0.0))
-        classes = np.clip(np.log2(np.maximum(spread, SPREAD_BASE_M) / SPREAD_BASE_M) / 2.0, 0, SPREAD_CLASSES - 1)
-        return classes.astype(np.int64)
 
 
 def fused_cv_q(filter, association) -> float | None:

@@ -6,9 +6,8 @@ call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from p
 
 1. each track predicted to its reference time (process-noise factor per track), its position
    spread ``sqrt(lambda_max)``;
-2. candidate plots within ``scale (s_t + s_p) + margin_t`` by a sort-and-sweep over x, in
-   classes of plot spread (powers of two), so that a few very uncertain plots do not widen
-   every track's search;
+2. candidate plots within ``scale (s_t + s_p) + margin_t``, found in a grid of spread classes,
+   columns of x and sorted y (:mod:`skytrack.association.grid_kernels`);
 3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
 4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
    track has a Mode C altitude — the plot placed again at that altitude on the sphere model
@@ -25,12 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.association.kernels import add_if_within
+from skytrack.association.grid_kernels import search_grid, spread_classes
 from skytrack.models.conversion_kernels import place_2d
-
-
-#: spread classes with at most this many plots are checked whole, without a search
-SMALL_CLASS = 16
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -89,11 +84,10 @@ def _max_eig_sym(M, dim):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
-                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, plot_order, bucket_start, q,
+                  plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, q,
                   ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
-    """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots, ``plot_order`` sorts
-    ``free`` by spread class then x (class c: ``bucket_start[c]:bucket_start[c + 1]``); the process noise of a track is ``q_big`` times the model's while its psi is set
-    or when ``forced``."""
+    """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots; the process noise of
+    a track is ``q_big`` times the model's while its psi is set or when ``forced``."""
     n_tracks = len(tracks)
     n_plots = len(free)
     n = 2 * ndim
@@ -150,38 +144,10 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
             for b in range(ndim):
                 block[a, b] = plot_cov[j, a, b]
         sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
-    # 2. candidates by sort-and-sweep over x within spread classes: ``plot_order`` sorts the plots
-    #    by class, then x; class c holds plots bucket_start[c]:bucket_start[c + 1].  A track
-    #    searches each class with that class's largest spread, so a few very uncertain plots
-    #    (near the radar at an assumed height, or not placeable) widen only their own search
-    n_classes = len(bucket_start) - 1
-    class_max = np.zeros(n_classes)
-    xs_sorted = np.empty(n_plots)
-    for c in range(n_classes):
-        for s in range(bucket_start[c], bucket_start[c + 1]):
-            j = plot_order[s]
-            xs_sorted[s] = plot_pos[j, 0]
-            if sigma_p[j] > class_max[c]:
-                class_max[c] = sigma_p[j]
-    capacity = 2 * (n_tracks + n_plots) + 16
-    out_t = np.empty(capacity, np.int64)
-    out_p = np.empty(capacity, np.int64)
-    count = 0
-    for k in range(n_tracks):
-        for c in range(n_classes):
-            first, last = bucket_start[c], bucket_start[c + 1]
-            if first == last:
-                continue
-            if last - first <= SMALL_CLASS:
-                lo, hi = first, last  # a few plots: checking them all is cheaper than searching
-            else:
-                reach = search_scale * (sigma_t[k] + class_max[c]) + margin[k]
-                lo = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] - reach)
-                hi = first + np.searchsorted(xs_sorted[first:last], ref_pos[k, 0] + reach, side="right")
-            for s in range(lo, hi):
-                j = plot_order[s]
-                radius = search_scale * (sigma_t[k] + sigma_p[j]) + margin[k]
-                out_t, out_p, count = add_if_within(ref_pos, plot_pos, k, j, radius, ndim, out_t, out_p, count)
+    # 2. candidates: plots within ``scale (s_t + s_p) + margin_t`` of the reference position
+    out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
+                                  ndim)
+    count = len(out_t)
     # 3.-5. exact gate of every candidate at its plot's time; pairs inside are written to the
     #       next free slot ``m`` (compaction as we go, no fancy indexing afterwards)
     x_pred = np.empty((count, n))

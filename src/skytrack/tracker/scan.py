@@ -7,7 +7,7 @@ A window of one sensor is processed as a composition of parts:
 3. association in stages — confirmed tracks; confirmed quiet tracks that found nothing, through
    the manoeuvre gate (filters that support it, psi = 1); tentative tracks on the plots left —
    each stage: the filter predicts the tracks to their reference time, the gate's candidate search
-   (k-d tree reference or compiled sort-and-sweep) bounds the pairs, the filter predicts each
+   (k-d tree reference or compiled grid) bounds the pairs, the filter predicts each
    pair to its plot's own time (spec 000 Theorem 2 / R7) and innovates it, the scorer gates and
    costs the pairs, the assigner chooses, and the filter updates the chosen pairs;
 4. expected tracks without a plot record a miss (no update: spec 000 R4);
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skytrack.association.kernels import sweep_candidates
+from skytrack.association.grid_kernels import grid_candidates
 from skytrack.association.base import Pairs
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.registry import build_assigner, build_scorer
@@ -232,7 +232,7 @@ class ScanProcessor(CompiledStages):
         schedule = self.schedule
         margin_s = schedule.time_margin(s)
         plot_positions = converted.position[free][:, :dim]
-        search = sweep_candidates if self.config.association.compiled else candidate_pairs
+        search = grid_candidates if self.config.association.compiled else candidate_pairs
         ti_local, pj_local = search(reference.x[:, self.pos], sigma_track, speed * margin_s + 1.0, plot_positions,
                                     sigma_plot, self.search_scale)
         if len(ti_local) == 0:

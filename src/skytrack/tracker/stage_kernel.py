@@ -19,7 +19,7 @@ from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 
 @njit(cache=True, nogil=True)
 def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos,
-             plot_cov, plot_mode_c, plot_range, plot_azimuth, plot_order, bucket_start, q, ndim, search_scale,
+             plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
              z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff):
@@ -27,7 +27,7 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
     (local track and plot indices, ``d^2``, predicted state, Cholesky factor, measurement)."""
     kt, kp, d2, x_pred, P_pred, position, covariance, chol, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
-        plot_mode_c, plot_range, plot_azimuth, plot_order, bucket_start, q, ndim, search_scale, margin_s, gate,
+        plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
     chosen, big = assign_clusters(kt, kp, d2, np.full(len(tracks), miss), len(tracks), len(free), max_dense)
     pick = np.flatnonzero(chosen)
@@ -46,8 +46,7 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
 
 
 @njit(cache=True, nogil=True)
-def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, window_order, plot_class,
-              n_classes, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
+def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
@@ -68,7 +67,6 @@ def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plo
     n_plots = len(plot_used)
     candidates = 0
     manoeuvre_hits = 0
-    local = np.empty(n_plots, np.int64)
     for stage in range(first_stage, 3):
         if stage == 1 and not manoeuvre_gate:
             continue
@@ -95,24 +93,11 @@ def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plo
         for j in range(n_plots):
             if not plot_used[j]:
                 free[m] = j
-                local[j] = m
                 m += 1
-        # the window's search order, restricted to the free plots, with each class's start
-        order = np.empty(free_count, np.int64)
-        bucket_start = np.zeros(n_classes + 1, np.int64)
-        m = 0
-        for s in range(n_plots):
-            j = window_order[s]
-            if not plot_used[j]:
-                order[m] = local[j]
-                bucket_start[plot_class[j] + 1] += 1
-                m += 1
-        for c in range(n_classes):
-            bucket_start[c + 1] += bucket_start[c]
         forced = stage == 1
         rows, plot_rows, found, big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = stage_cv(
             tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, stage_t_ref, plot_time, plot_pos,
-            plot_cov, plot_mode_c, plot_range, plot_azimuth, order, bucket_start, q, ndim, search_scale, margin_s,
+            plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s,
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff)
