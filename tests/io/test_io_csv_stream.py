@@ -19,6 +19,7 @@ import pytest
 import skytrack.io.tables as tables
 from io_samples import make_plots
 from skytrack.io import InputError, ReadReport, iter_plots, read_plots, write_plots
+from skytrack.io.csv_types import infer_csv_column
 from skytrack.io.tables import iter_csv
 
 CHUNKS = [1, 7, 128, 5000]
@@ -300,6 +301,6 @@ def test_a_chunk_is_typed_as_pyarrow_types_a_whole_file(cells):
         return pcsv.read_csv(io.BytesIO(data), convert_options=options).column(0)
 
     inferred = read({})
-    ours = tables._infer_csv_column(read({"c": pa.string()}))
+    ours = infer_csv_column(read({"c": pa.string()}))
     assert ours.type == inferred.type
     assert ours.to_pandas().astype(str).tolist() == inferred.to_pandas().astype(str).tolist()

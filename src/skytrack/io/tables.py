@@ -11,9 +11,11 @@ found by scanning the file only when an error message needs it (one resumable sc
 file, shared by the chunks of a streamed read).
 
 Streaming: :func:`iter_parquet` and :func:`iter_csv` hand a file out in chunks of at most
-``chunk_rows`` rows, so memory is bounded by the chunk size.  :func:`iter_csv` reads with
+``chunk_rows`` rows, so memory is bounded by the chunk size; :func:`iter_parquet_tables`
+and :func:`iter_csv_tables` hand out the same chunks as Arrow tables (for readers that
+check and convert the arrays without a DataFrame).  The CSV stream reads with
 ``pyarrow.csv.open_csv`` and infers the column types per chunk the way
-``pyarrow.csv.read_csv`` infers them for a whole file (see :func:`_infer_csv_column`),
+``pyarrow.csv.read_csv`` infers them for a whole file (:mod:`skytrack.io.csv_types`),
 so a chunk reads like a small file would.
 """
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -29,10 +32,10 @@ from typing import Iterator, Sequence
 import numpy as np
 import pandas as pd
 import pyarrow as pa
-import pyarrow.compute as pc
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 
+from skytrack.io.csv_types import typed_csv_chunk
 from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.schema import STRING_DTYPE, TEXT_COLUMNS
 
@@ -225,19 +228,23 @@ def _parquet_error(path: Path, exc: Exception) -> InputError:
     return InputError(f"not a readable Parquet file ({reason})", file=str(path))
 
 
+def arrow_to_frame(table: pa.Table | pa.RecordBatch) -> pd.DataFrame:
+    """An Arrow table as a DataFrame, text as :data:`~skytrack.io.schema.STRING_DTYPE`."""
+    return table.to_pandas(types_mapper=_string_mapper)
+
+
 def _read_parquet(path: Path) -> pd.DataFrame:
     try:
-        table = pq.read_table(path)
-        return table.to_pandas(types_mapper=_string_mapper)
+        return arrow_to_frame(pq.read_table(path))
     except (pa.ArrowException, OSError) as exc:
         raise _parquet_error(path, exc) from None
 
 
-def iter_parquet(path: str | Path, chunk_rows: int) -> Iterator[tuple[pd.DataFrame, TableSource]]:
-    """Read a Parquet file in chunks of at most ``chunk_rows`` rows (bounded memory).
+def iter_parquet_tables(path: str | Path, chunk_rows: int) -> Iterator[tuple[pa.RecordBatch, TableSource]]:
+    """Read a Parquet file in Arrow record batches of at most ``chunk_rows`` rows (bounded memory).
 
     Each chunk comes with a :class:`TableSource` whose ``row_offset`` makes error messages
-    name rows of the whole file.
+    name rows of the whole file.  Duplicate column names raise :class:`InputError`.
     """
     path = Path(path)
     _check_exists(path)
@@ -245,13 +252,23 @@ def iter_parquet(path: str | Path, chunk_rows: int) -> Iterator[tuple[pd.DataFra
     try:
         parquet = pq.ParquetFile(path)
         for batch in parquet.iter_batches(batch_size=chunk_rows):
-            frame = batch.to_pandas(types_mapper=_string_mapper)
             source = TableSource(display=str(path), path=path, row_offset=offset)
-            _check_unique_columns(frame, source)
-            yield frame, source
-            offset += len(frame)
+            _check_unique_columns(batch.schema.names, source)
+            yield batch, source
+            offset += batch.num_rows
     except (pa.ArrowException, OSError) as exc:
         raise _parquet_error(path, exc) from None
+
+
+def iter_parquet(path: str | Path, chunk_rows: int) -> Iterator[tuple[pd.DataFrame, TableSource]]:
+    """:func:`iter_parquet_tables` in DataFrames."""
+    path = Path(path)
+    for batch, source in iter_parquet_tables(path, chunk_rows):
+        try:
+            frame = arrow_to_frame(batch)
+        except (pa.ArrowException, OSError) as exc:
+            raise _parquet_error(path, exc) from None
+        yield frame, source
 
 
 def count_rows(path: str | Path) -> int | None:
@@ -297,7 +314,7 @@ def _read_csv(path: Path, text_columns: frozenset[str], source: TableSource) -> 
     except (pa.ArrowException, OSError) as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"cannot read as CSV ({reason})", file=str(path)) from None
-    return table.to_pandas(types_mapper=_string_mapper)
+    return arrow_to_frame(table)
 
 
 # -- streamed CSV ---------------------------------------------------------------------
@@ -306,75 +323,6 @@ def _read_csv(path: Path, text_columns: frozenset[str], source: TableSource) -> 
 #: must hold at least one whole line, and a few MiB read fastest (chunks gather blocks)
 _MIN_BLOCK_BYTES = 1 << 20
 _MAX_BLOCK_BYTES = 4 << 20
-_TRUE_VALUES = pa.array(["1", "True", "TRUE", "true"])
-_BOOL_VALUES = pa.array(["1", "True", "TRUE", "true", "0", "False", "FALSE", "false"])
-#: the types pyarrow's CSV reader tries, in its order (time32 has no cast from text)
-_INFERRED_TYPES = (
-    pa.int64(), pa.bool_(), pa.date32(), pa.timestamp("s"), pa.timestamp("ns"),
-    pa.timestamp("s", "UTC"), pa.timestamp("ns", "UTC"), pa.float64(),
-)
-
-
-def _infer_csv_column(column: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
-    """Type a text column as ``pyarrow.csv.read_csv`` would have inferred it.
-
-    Nulls were already recognised by the reader (``CSV_NULL_TOKENS``).  The first type of
-    :data:`_INFERRED_TYPES` that every non-null value converts to wins, else text stays;
-    numbers may be surrounded by spaces or tabs, as the CSV reader allows.
-    """
-    if column.null_count == len(column):
-        return pa.nulls(len(column))
-    trimmed = None
-    head = column.slice(0, 16 * _INFER_HEAD_ROWS).drop_null().slice(0, _INFER_HEAD_ROWS)
-    if len(head) == 0:
-        head = column.drop_null().slice(0, _INFER_HEAD_ROWS)
-    trimmed_head = None
-    for target in _INFERRED_TYPES:
-        if pa.types.is_boolean(target):
-            if _all_bool(head) and _all_bool(column):
-                is_true = pc.is_in(column, value_set=_TRUE_VALUES)
-                return pc.if_else(pc.is_valid(column), is_true, pa.scalar(None, pa.bool_()))
-            continue
-        values, first = column, head
-        if pa.types.is_integer(target) or pa.types.is_floating(target):
-            trimmed_head = trimmed_head if trimmed_head is not None else pc.utf8_trim(head, characters=" \t")
-            first = trimmed_head
-            if _casts(first, target):
-                trimmed = trimmed if trimmed is not None else pc.utf8_trim(column, characters=" \t")
-                values = trimmed
-        # a failing cast reads its whole input before it fails: try a few values first
-        if _casts(first, target) and (converted := _cast_or_none(values, target)) is not None:
-            return converted
-    return column
-
-
-#: non-null values of a column tried first when its type is inferred
-_INFER_HEAD_ROWS = 16
-
-
-def _cast_or_none(values, target: pa.DataType):
-    try:
-        return pc.cast(values, target)
-    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-        return None
-
-
-def _all_bool(values) -> bool:
-    return bool(pc.all(pc.is_in(values, value_set=_BOOL_VALUES), skip_nulls=True).as_py())
-
-
-def _casts(values, target: pa.DataType) -> bool:
-    return _cast_or_none(values, target) is not None
-
-
-def _typed_chunk(table: pa.Table, text_columns: frozenset[str]) -> pa.Table:
-    columns = [
-        column if name in text_columns else _infer_csv_column(column)
-        for name, column in zip(table.column_names, table.columns)
-    ]
-    return pa.Table.from_arrays(columns, names=table.column_names)
-
-
 def _csv_block_bytes(path: Path, chunk_rows: int) -> int:
     """A reader block of about ``chunk_rows`` lines, from the line length at the top of the file."""
     with _open_binary(path) as stream:
@@ -392,7 +340,22 @@ def iter_csv(
     report: ReadReport | None = None,
     block_bytes: int | None = None,
 ) -> Iterator[tuple[pd.DataFrame, TableSource]]:
-    """Stream a CSV file (.csv/.csv.gz) in DataFrames of ``chunk_rows`` rows (the last may be shorter).
+    """:func:`iter_csv_tables` in DataFrames."""
+    for table, source in iter_csv_tables(path, chunk_rows, text_columns=text_columns, lenient=lenient,
+                                         report=report, block_bytes=block_bytes):
+        yield arrow_to_frame(table), source
+
+
+def iter_csv_tables(
+    path: str | Path,
+    chunk_rows: int,
+    *,
+    text_columns: frozenset[str] = TEXT_COLUMNS,
+    lenient: bool = False,
+    report: ReadReport | None = None,
+    block_bytes: int | None = None,
+) -> Iterator[tuple[pa.Table, TableSource]]:
+    """Stream a CSV file (.csv/.csv.gz) in Arrow tables of ``chunk_rows`` rows (the last may be shorter).
 
     Memory is bounded by a chunk plus one reader block (``block_bytes``, by default about
     ``chunk_rows`` lines).  Every chunk comes with the same :class:`TableSource`, whose
@@ -438,11 +401,11 @@ def iter_csv(
             more=source.n_invalid_lines - 1,
         )
 
-    def chunk(table: pa.Table, offset: int) -> tuple[pd.DataFrame, TableSource]:
-        frame = _typed_chunk(table, text_columns).to_pandas(types_mapper=_string_mapper)
+    def chunk(table: pa.Table, offset: int) -> tuple[pa.Table, TableSource]:
+        typed = typed_csv_chunk(table, text_columns)
         source.row_offset = offset
-        _check_unique_columns(frame, source)
-        return frame, source
+        _check_unique_columns(typed.column_names, source)
+        return typed, source
 
     offset = 0
     pending: list[pa.RecordBatch] = []
@@ -492,8 +455,9 @@ def iter_csv(
         report.rows_read += source.n_invalid_lines
 
 
-def _check_unique_columns(df: pd.DataFrame, source: TableSource) -> None:
-    duplicated = sorted({str(c) for c in df.columns[df.columns.duplicated()]})
+def _check_unique_columns(names: Sequence[object], source: TableSource) -> None:
+    counts = Counter(str(name) for name in names)
+    duplicated = sorted(name for name, count in counts.items() if count > 1)
     if duplicated:
         raise source.error(f"duplicate column name(s): {', '.join(duplicated)}")
 
@@ -515,7 +479,7 @@ def load_table(
     _check_exists(path)
     source = TableSource(display=str(path), path=path, is_csv=fmt == "csv")
     df = _read_parquet(path) if fmt == "parquet" else _read_csv(path, text_columns, source)
-    _check_unique_columns(df, source)
+    _check_unique_columns(list(df.columns), source)
     if source.n_invalid_lines:
         bad = source.invalid_lines(limit=3)
         issues = [
