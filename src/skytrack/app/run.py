@@ -96,11 +96,11 @@ def run_tracking(
     with TrackWriter(out) as writer:
         for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
             tracker.feed(chunk, source=str(plots_path))
-            writer.write(tracker.drain(), checked=True)
+            writer.write(tracker.drain_arrow(), checked=True)
             plots_read += len(chunk)
             report_progress("track", plots_read, total)
         tracker.finish()
-        writer.write(tracker.drain(), checked=True)
+        writer.write(tracker.drain_arrow(), checked=True)
     report_progress("track", plots_read, total if total is not None else plots_read)
     elapsed = time.perf_counter() - started
     return RunSummary(

@@ -11,7 +11,8 @@ range rate m/s, Mode C altitude m.  Identity codes (``-1`` = absent):
 * ``mode_s`` — the 24-bit ICAO address as an integer (``int(icao24, 16)``);
 * ``iff`` — index into :data:`IFF_VALUES`.
 
-:func:`decode_mode3a`, :func:`decode_icao24` and :func:`decode_iff` give the text back.
+:func:`decode_mode3a`, :func:`decode_icao24` and :func:`decode_iff` give the text back (as
+pandas arrays; :func:`mode3a_text`, :func:`icao24_text` and :func:`iff_text` as pyarrow arrays).
 """
 
 from __future__ import annotations
@@ -180,19 +181,38 @@ def _iff_codes(frame: pd.DataFrame, source: str, first_row: int) -> np.ndarray:
 
 
 def decode_mode3a(codes: np.ndarray):
-    return _decode(codes, "{:04o}")
+    return _as_pandas_text(mode3a_text(codes))
 
 
 def decode_icao24(codes: np.ndarray):
-    return _decode(codes, "{:06x}")
+    return _as_pandas_text(icao24_text(codes))
 
 
 def decode_iff(codes: np.ndarray):
+    return _as_pandas_text(iff_text(codes))
+
+
+def mode3a_text(codes: np.ndarray):
+    """:func:`decode_mode3a` as a pyarrow string array (what a table writer takes)."""
+    return _decode(codes, "{:04o}")
+
+
+def icao24_text(codes: np.ndarray):
+    """:func:`decode_icao24` as a pyarrow string array."""
+    return _decode(codes, "{:06x}")
+
+
+def iff_text(codes: np.ndarray):
+    """:func:`decode_iff` as a pyarrow string array."""
     return _decode(codes, None)
 
 
+def _as_pandas_text(values):
+    return pd.array(values, dtype="str")
+
+
 def _decode(codes: np.ndarray, form: str | None):
-    """Text of integer codes as a pandas string array (missing where the code is -1).
+    """Text of integer codes as a pyarrow string array (null where the code is -1).
 
     Each distinct code is formatted once (pyarrow dictionary encoding), so decoding a drain's
     rows costs a hash pass, not a Python call per row.
@@ -205,4 +225,4 @@ def _decode(codes: np.ndarray, form: str | None):
         texts = [IFF_VALUES[c] if c >= 0 else None for c in values]
     else:
         texts = [form.format(c) if c >= 0 else None for c in values]
-    return pd.array(pa.array(texts, type=pa.string()).take(encoded.indices), dtype="str")
+    return pa.array(texts, type=pa.string()).take(encoded.indices)

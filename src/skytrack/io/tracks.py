@@ -38,11 +38,16 @@ from skytrack.io.checks import (
     order_columns,
     require_columns,
 )
-from skytrack.io.errors import ReadReport
+from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.frames import geodetic_from_enu
 from skytrack.io.schema import TRACK_SCHEMA, TRACK_STATUS_VALUES, TableSchema
-from skytrack.io.errors import InputError
-from skytrack.io.tables import TableSource, load_table, table_format, write_table
+from skytrack.io.tables import (
+    TableSource,
+    arrow_to_frame,
+    load_table,
+    table_format,
+    write_table,
+)
 
 _COVARIANCE = re.compile(r"cov_\d+_\d+")
 _VARIANCES = ("var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz")
@@ -144,7 +149,19 @@ def write_tracks(df: pd.DataFrame, path: str | Path, *, origin: Origin | None = 
     return write_table(add_missing_columns(tracks, TRACK_SCHEMA), path)
 
 
+#: columns whose min/max the streamed tracks file records per row group (time windows, track ids)
+_STATISTICS_COLUMNS = ("time", "track_id")
 _ARROW_KINDS = {"float": pa.float64(), "int": pa.int64(), "string": pa.string(), "bool": pa.bool_()}
+
+
+def _with_missing_arrow_columns(table: pa.Table, schema: TableSchema) -> pa.Table:
+    """:func:`add_missing_columns` for an Arrow table: absent columns as nulls of their kind,
+    the schema's columns first in its order, then the extra columns in theirs."""
+    names = table.column_names
+    known = [c.name for c in schema.columns]
+    columns = [table[c.name] if c.name in names else pa.nulls(len(table), _ARROW_KINDS[c.kind]) for c in schema.columns]
+    extra = [name for name in names if name not in known]
+    return pa.Table.from_arrays(columns + [table[name] for name in extra], names=known + extra)
 
 
 class TrackWriter:
@@ -173,20 +190,30 @@ class TrackWriter:
             fields.append(pa.field(field.name, _ARROW_KINDS[kind] if kind else field.type))
         return pa.schema(fields)
 
-    def write(self, chunk: pd.DataFrame, *, checked: bool = False) -> None:
+    def write(self, chunk: pd.DataFrame | pa.Table | None, *, checked: bool = False) -> None:
         """Append ``chunk``; ``checked=True`` skips the validation for tables that are valid by
-        construction (the tracker's own output, in the docs/formats.md column order)."""
-        if len(chunk) == 0:
+        construction (the tracker's own output, in the docs/formats.md column order).
+
+        A pyarrow Table (:meth:`~skytrack.tracker.Tracker.drain_arrow`) is written as it is when
+        ``checked``, else validated like a DataFrame; ``None`` writes nothing."""
+        if chunk is None or len(chunk) == 0:
             return
-        tracks = add_missing_columns(chunk if checked else _tracks_to_write(chunk, self.path), TRACK_SCHEMA)
-        table = pa.Table.from_pandas(tracks, preserve_index=False)
+        if isinstance(chunk, pa.Table) and checked:
+            table = _with_missing_arrow_columns(chunk, TRACK_SCHEMA)
+        else:
+            if isinstance(chunk, pa.Table):  # validated as a DataFrame, like any other input
+                chunk = arrow_to_frame(chunk)
+            tracks = add_missing_columns(chunk if checked else _tracks_to_write(chunk, self.path), TRACK_SCHEMA)
+            table = pa.Table.from_pandas(tracks, preserve_index=False)
         if self._schema is None:
             self._schema = self._schema_for(table)
             if self.format == "parquet":
                 # dictionary-encode only the text columns: trying it on every float column
-                # costs more than the whole compression and gains nothing
+                # costs more than the whole compression and gains nothing; min/max statistics
+                # only where a reader selects row groups by them (they cost a sixth of the write)
                 text = [f.name for f in self._schema if pa.types.is_string(f.type)]
-                self._writer = pq.ParquetWriter(str(self.path), self._schema, use_dictionary=text)
+                self._writer = pq.ParquetWriter(str(self.path), self._schema, use_dictionary=text,
+                                                write_statistics=list(_STATISTICS_COLUMNS))
             else:
                 self._stream = (
                     pa.CompressedOutputStream(str(self.path), "gzip")
@@ -198,7 +225,7 @@ class TrackWriter:
             self._writer.write_table(table.select(self._schema.names).cast(self._schema))
         except (pa.ArrowException, KeyError) as exc:
             raise InputError(f"cannot append tracks ({exc})", file=str(self.path)) from None
-        self.rows += len(tracks)
+        self.rows += len(table)
 
     def close(self) -> None:
         if self._writer is None:
@@ -210,7 +237,7 @@ class TrackWriter:
             self._stream.close()
         self._writer = None
 
-    def __enter__(self) -> "TrackWriter":
+    def __enter__(self) -> TrackWriter:
         return self
 
     def __exit__(self, *exc_info) -> None:

@@ -3,7 +3,9 @@
 Confirmed tracks are reported at output instants — the end of every scan of the first
 radar, or every ``output_interval_s`` — predicted to the instant.  Each instant keeps a compact record
 (:func:`instant_record`); one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`
-(:func:`build_table`), with one geodetic conversion and one identity decoding for all its rows.
+(:func:`build_table`), with one geodetic conversion and one identity decoding for all its rows;
+:func:`tracks_frame` makes it a DataFrame, :func:`tracks_arrow` an Arrow table for a writer
+(no DataFrame on the way to the file).
 2-D tracks carry ``z`` null and their last Mode C altitude as ``alt_m``; lat/lon come from
 the ENU position (at the last plot's height for 2-D tracks).
 """
@@ -16,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from skytrack.core.plots import decode_icao24, decode_iff, decode_mode3a
-from skytrack.core.tracks import covariance_columns
-from skytrack.geo.wgs84 import enu_to_geodetic
+from skytrack.core.plots import icao24_text, iff_text, mode3a_text
+from skytrack.core.tracks import EMPTY_COLUMNS, covariance_columns
+from skytrack.geo.wgs84 import enu_to_geodetic_closed_form
 from skytrack.tracker.bank import TrackBank
 
 
@@ -87,18 +89,24 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
 def _status_text(coasting: np.ndarray):
     import pyarrow as pa
 
-    return pd.array(pa.array(["confirmed", "coasting"]).take(pa.array(coasting.astype(np.int8))), dtype="str")
+    return pa.array(["confirmed", "coasting"]).take(pa.array(coasting.astype(np.int8)))
 
 
-def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, np.ndarray]:
-    """The tracks-table columns (docs/formats.md order) of concatenated instant records."""
+def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, object]:
+    """The tracks-table columns (docs/formats.md order) of concatenated instant records.
+
+    Numbers are numpy arrays (NaN where unknown), text columns pyarrow string arrays (null
+    where unknown); :func:`tracks_frame` or :func:`tracks_arrow` make the table.
+    """
+    import pyarrow as pa
+
     parts = {name: np.concatenate([r[name] for r in records]) for name in records[0]}
     x, var = parts["x"], parts["var"]
     count = len(x)
     nan = np.full(count, np.nan)
     pos = np.arange(dim) * order
     vel = pos + 1
-    columns: dict[str, np.ndarray] = {"time": parts["time"], "track_id": parts["track_id"]}
+    columns: dict[str, object] = {"time": parts["time"], "track_id": parts["track_id"]}
     for axis, name in enumerate("xyz"):
         columns[name] = x[:, pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
@@ -108,19 +116,51 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     for axis, name in enumerate(("vx", "vy", "vz")):
         columns[f"var_{name}"] = var[:, vel[axis]] if axis < dim else nan
     z = x[:, pos[2]] if dim == 3 else np.nan_to_num(parts["z_hint"])
-    lat, lon, alt = enu_to_geodetic(x[:, pos[0]], x[:, pos[1]], z, origin.lat, origin.lon, origin.alt_m)
+    lat, lon, alt = enu_to_geodetic_closed_form(x[:, pos[0]], x[:, pos[1]], z, origin.lat, origin.lon, origin.alt_m)
     columns["lat"], columns["lon"] = lat, lon
     columns["alt_m"] = alt if dim == 3 else parts["alt_m"]
     columns["status"] = _status_text(parts["n_misses"] > 0)
     columns["n_updates"] = parts["n_updates"]
     columns["n_misses"] = parts["n_misses"]
-    columns["mode3a"] = decode_mode3a(parts["mode3a"])
-    columns["icao24"] = decode_icao24(parts["icao24"])
-    columns["callsign"] = np.full(count, None, dtype=object)
-    columns["iff"] = decode_iff(parts["iff"])
-    columns["model_probs"] = np.full(count, None, dtype=object)
+    columns["mode3a"] = mode3a_text(parts["mode3a"])
+    columns["icao24"] = icao24_text(parts["icao24"])
+    columns["callsign"] = pa.nulls(count, pa.string())
+    columns["iff"] = iff_text(parts["iff"])
+    columns["model_probs"] = pa.nulls(count, pa.string())
     if "upper" in parts:
         upper = parts["upper"]
         for k, name in enumerate(covariance_columns(x.shape[1])):
             columns[name] = upper[:, k]
     return columns
+
+
+def tracks_frame(columns: dict[str, object]) -> pd.DataFrame:
+    """The tracks DataFrame of :func:`build_table`'s columns: text as pandas "str", the columns
+    the tracker leaves empty as object columns of None (as :func:`~skytrack.core.tracks.empty_tracks`)."""
+    import pyarrow as pa
+
+    frame = {}
+    for name, values in columns.items():
+        if name in EMPTY_COLUMNS:
+            frame[name] = np.full(len(values), None, dtype=object)
+        elif isinstance(values, pa.Array):
+            frame[name] = pd.array(values, dtype="str")
+        else:
+            frame[name] = values
+    return pd.DataFrame(frame)
+
+
+def tracks_arrow(columns: dict[str, object]):
+    """The tracks of :func:`build_table`'s columns as a pyarrow Table, typed as the tracks file
+    stores them: float64 with NaN written as null (as a DataFrame's NaN is), int64, string."""
+    import pyarrow as pa
+
+    arrays = []
+    for values in columns.values():
+        if isinstance(values, pa.Array):
+            arrays.append(values)
+        elif values.dtype.kind == "f":
+            arrays.append(pa.array(values, type=pa.float64(), from_pandas=True))
+        else:
+            arrays.append(pa.array(values, type=pa.int64()))
+    return pa.Table.from_arrays(arrays, names=list(columns))

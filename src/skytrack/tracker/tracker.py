@@ -24,7 +24,7 @@ from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.output import OutputClock, build_table, instant_record
+from skytrack.tracker.output import OutputClock, build_table, instant_record, tracks_arrow, tracks_frame
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
 from skytrack.tracker.window_kernels import report_cv
@@ -132,14 +132,22 @@ class Tracker:
         if not self.outputs:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         outputs, self.outputs = self.outputs, []
-        return pd.DataFrame(build_table(outputs, self.dim, self.order, self.sensors.origin))
+        return tracks_frame(build_table(outputs, self.dim, self.order, self.sensors.origin))
+
+    def drain_arrow(self):
+        """:meth:`drain` as a pyarrow Table (typed as the tracks file stores it), for a writer:
+        no DataFrame is built.  ``None`` when there are no rows."""
+        if not self.outputs:
+            return None
+        outputs, self.outputs = self.outputs, []
+        return tracks_arrow(build_table(outputs, self.dim, self.order, self.sensors.origin))
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
         rows = np.flatnonzero(self.bank.status == CONFIRMED) if confirmed_only else np.arange(len(self.bank))
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
-        return pd.DataFrame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin))
+        return tracks_frame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin))
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
