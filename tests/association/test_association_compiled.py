@@ -1,17 +1,19 @@
 """Compiled association kernels against their references: the grid candidate search
 against the k-d tree search, the compiled GNN (clusters + shortest augmenting path + sparse
-matching for large clusters) against ``assign_gnn`` (scipy's dense assignment per cluster)."""
+shortest paths for large clusters) against ``assign_gnn`` (scipy's dense assignment per cluster)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import linear_sum_assignment
 
 from skytrack.association import gnn
 from skytrack.association.base import PairScores, Pairs
 from skytrack.association.candidates import candidate_pairs
 from skytrack.association.gnn import GNNAssigner, assign_gnn, sparse_assignment
 from skytrack.association.grid_kernels import grid_candidates
+from skytrack.association.kernels import assign_clusters, assign_sparse
 
 
 def _total_cost(chosen, ti, cost, miss, n_tracks):
@@ -93,3 +95,36 @@ def test_grid_candidates_hold_every_pair_within_the_bound(dim):
             assert len(found) == len(a)  # no pair twice
             results.append(found)
         assert results[0] == results[1]  # the same radii: the same pairs
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_sparse_assignment_equals_linear_sum_assignment(seed):
+    """:func:`assign_sparse` (successive shortest paths on the edges only) against scipy's dense
+    ``linear_sum_assignment`` on the same rectangular problem (forbidden cells very costly),
+    rows with a private column so that every row can be assigned; ties are unlikely with
+    uniform costs, so the columns must be the same, not only the total."""
+    rng = np.random.default_rng(200 + seed)
+    for _ in range(25):
+        n_rows, n_shared = int(rng.integers(1, 60)), int(rng.integers(1, 60))
+        dense = np.full((n_rows, n_shared + n_rows), np.inf)
+        for r in range(n_rows):
+            picked = rng.choice(n_shared, size=int(rng.integers(0, min(n_shared, 6) + 1)), replace=False)
+            dense[r, picked] = rng.uniform(0, 20, len(picked))
+            dense[r, n_shared + r] = rng.uniform(5, 20)
+        rows, cols = np.nonzero(np.isfinite(dense))
+        row_start = np.searchsorted(rows, np.arange(n_rows + 1))
+        col_of_row = assign_sparse(row_start, cols.astype(np.int64), dense[rows, cols], n_rows, n_shared + n_rows)
+        _, expected = linear_sum_assignment(np.where(np.isfinite(dense), dense, 1e12))
+        np.testing.assert_array_equal(col_of_row, expected)
+        assert len(np.unique(col_of_row)) == n_rows
+
+
+def test_compiled_gnn_solves_large_clusters_on_their_edges():
+    """Every cluster above two nodes through the sparse solver (``max_dense=2``), compiled in one
+    call: the same pairs as the scipy reference."""
+    rng = np.random.default_rng(11)
+    for _ in range(30):
+        ti, pj, cost, miss, n_tracks, n_plots = _random_problem(rng, max_side=80, max_pairs=600)
+        chosen = np.flatnonzero(assign_clusters(ti.astype(np.int64), pj.astype(np.int64), cost, miss, n_tracks,
+                                                n_plots, 2))
+        np.testing.assert_array_equal(chosen, np.sort(assign_gnn(ti, pj, cost, n_tracks, n_plots, miss)))

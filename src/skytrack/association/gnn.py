@@ -87,17 +87,17 @@ def _solve_cluster(pairs, tracks, plots, costs, miss) -> np.ndarray:
     return picked[picked >= 0]
 
 
-#: clusters with more tracks plus plots than this go to the sparse solver
+#: clusters with more tracks plus plots than this are solved on their edges only (sparse)
 MAX_DENSE_CLUSTER = 48
 
 
 class GNNAssigner:
     """Global nearest neighbour over :class:`~skytrack.association.base.PairScores` (``"gnn"``).
 
-    Only pairs inside the gate take part.  ``compiled=True`` solves lone pairs and clusters
-    up to :data:`MAX_DENSE_CLUSTER` nodes in one numba call and every larger cluster in one
-    sparse call (``scipy.sparse.csgraph.min_weight_full_bipartite_matching``), so there is
-    no Python loop over clusters; ``compiled=False`` is :func:`assign_gnn`, the reference.
+    Only pairs inside the gate take part.  ``compiled=True`` solves every cluster in one numba
+    call (:func:`~skytrack.association.kernels.assign_clusters`: dense up to
+    :data:`MAX_DENSE_CLUSTER` nodes, sparse shortest paths above), so there is no Python loop
+    over clusters; ``compiled=False`` is :func:`assign_gnn`, the reference.
     """
 
     name = "gnn"
@@ -118,17 +118,14 @@ class GNNAssigner:
         """Indices of the chosen pairs among pairs that are all inside the gate (sorted)."""
         if not self.compiled:
             return np.sort(assign_gnn(ti, pj, cost, n_tracks, n_plots, miss))
-        chosen, big = assign_clusters(ti.astype(np.int64), pj.astype(np.int64), cost.astype(float),
-                                      np.ascontiguousarray(miss, dtype=float), n_tracks, n_plots, MAX_DENSE_CLUSTER)
-        picked = np.flatnonzero(chosen)
-        if big.any():
-            rows = np.flatnonzero(big)
-            picked = np.concatenate([picked, rows[sparse_assignment(ti[rows], pj[rows], cost[rows], miss)]])
-        return np.sort(picked)
+        chosen = assign_clusters(ti.astype(np.int64), pj.astype(np.int64), cost.astype(float),
+                                 np.ascontiguousarray(miss, dtype=float), n_tracks, n_plots, MAX_DENSE_CLUSTER)
+        return np.flatnonzero(chosen)
 
 
 def sparse_assignment(ti: np.ndarray, pj: np.ndarray, cost: np.ndarray, miss: np.ndarray) -> np.ndarray:
-    """Optimal assignment of gated pairs with "unassigned" options, as one sparse matching.
+    """Optimal assignment of gated pairs with "unassigned" options, as one scipy sparse matching
+    (the reference of the compiled :func:`~skytrack.association.kernels.assign_sparse`).
 
     Rows are tracks then plot-dummies, columns plots then track-dummies.  Edges: each pair
     (cost), track -> its own dummy (miss cost), plot-dummy -> its plot (0) and, for each

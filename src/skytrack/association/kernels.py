@@ -6,11 +6,14 @@
   the clusters; a lone pair is taken when it costs no more than leaving its track
   unassigned; clusters up to ``max_dense`` tracks plus plots are solved exactly by a
   shortest-augmenting-path assignment on the matrix augmented with "track unassigned"
-  (cost ``miss``) and "plot unassigned" (cost 0) options; larger clusters are flagged
-  for the sparse solver.  Reference: :func:`skytrack.association.gnn.assign_gnn`.
+  (cost ``miss``) and "plot unassigned" (cost 0) options; larger clusters by
+  :func:`assign_sparse` (successive shortest paths over the cluster's edges only).
+  Reference: :func:`skytrack.association.gnn.assign_gnn`.
 """
 
 from __future__ import annotations
+
+import heapq
 
 import numpy as np
 from numba import njit
@@ -110,7 +113,7 @@ def _assign_dense(C):
 
 @njit(cache=True, nogil=True)
 def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
-    """Chosen-pair mask and big-cluster mask for gated pairs (see the module docstring)."""
+    """Chosen-pair mask of gated pairs (see the module docstring)."""
     n_pairs = len(ti)
     parent = np.arange(n_tracks + n_plots)
     for k in range(n_pairs):
@@ -133,7 +136,6 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
         order[start_of[root[k]]] = k
         start_of[root[k]] += 1
     chosen = np.zeros(n_pairs, np.bool_)
-    big = np.zeros(n_pairs, np.bool_)
     track_local = np.full(n_tracks, -1, np.int64)
     plot_local = np.full(n_plots, -1, np.int64)
     start = 0
@@ -158,8 +160,7 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
                 plot_local[pj[k]] = npl
                 npl += 1
         if nt + npl > max_dense:
-            for s in range(start, stop):
-                big[order[s]] = True
+            _solve_sparse_cluster(order[start:stop], ti, pj, cost, miss, track_local, plot_local, nt, npl, chosen)
         else:
             size = nt + npl
             C = np.full((size, size), np.inf)
@@ -185,4 +186,116 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
             track_local[ti[k]] = -1
             plot_local[pj[k]] = -1
         start = stop
-    return chosen, big
+    return chosen
+
+
+@njit(cache=True, nogil=True)
+def _solve_sparse_cluster(pairs, ti, pj, cost, miss, track_local, plot_local, nt, npl, chosen):
+    """One large cluster: every track takes one of its gated plots or its own "unassigned"
+    column (cost ``miss``), plots at most once, at least total cost; marks ``chosen``.
+
+    ``track_local``/``plot_local`` number the cluster's tracks and plots 0.. (set by the caller)."""
+    row_start = np.zeros(nt + 1, np.int64)
+    for s in range(len(pairs)):
+        row_start[track_local[ti[pairs[s]]] + 1] += 1
+    for a in range(nt):
+        row_start[a + 1] += row_start[a] + 1  # one more edge per row: its "unassigned" column
+    col = np.empty(row_start[nt], np.int64)
+    weight = np.empty(row_start[nt])
+    edge_pair = np.full(row_start[nt], -1, np.int64)
+    fill = row_start[:-1].copy()
+    for s in range(len(pairs)):
+        k = pairs[s]
+        a = track_local[ti[k]]
+        col[fill[a]] = plot_local[pj[k]]
+        weight[fill[a]] = cost[k]
+        edge_pair[fill[a]] = k
+        fill[a] += 1
+        # the row's last edge: its own "unassigned" column
+        col[row_start[a + 1] - 1] = npl + a
+        weight[row_start[a + 1] - 1] = miss[ti[k]]
+    col_of_row = assign_sparse(row_start, col, weight, nt, npl + nt)
+    for a in range(nt):
+        for e in range(row_start[a], row_start[a + 1]):
+            if col[e] == col_of_row[a] and edge_pair[e] >= 0:
+                chosen[edge_pair[e]] = True
+
+
+@njit(cache=True, nogil=True)
+def assign_sparse(row_start, col, weight, n_rows, n_cols):
+    """Least-cost assignment of every row to its own column over sparse edges (row r's edges are
+    ``row_start[r]:row_start[r + 1]`` of ``col``/``weight``), by successive shortest augmenting
+    paths: Dijkstra on reduced costs with column potentials, one row at a time.  An assignment
+    of every row must exist (the caller gives each row a private column).  Returns the column
+    of every row.  Reference: :func:`skytrack.association.gnn.sparse_assignment` (scipy)."""
+    v = np.zeros(n_cols)
+    row_of_col = np.full(n_cols, -1, np.int64)
+    col_of_row = np.full(n_rows, -1, np.int64)
+    matched_weight = np.zeros(n_cols)
+    dist = np.full(n_cols, np.inf)
+    reached_from = np.empty(n_cols, np.int64)
+    reached_weight = np.empty(n_cols)
+    done = np.zeros(n_cols, np.bool_)
+    touched = np.empty(n_cols, np.int64)
+    finished = np.empty(n_cols, np.int64)
+    for r in range(n_rows):
+        n_touched = 0
+        n_finished = 0
+        heap = [(0.0, np.int64(0))]
+        heap.pop()
+        # distances are reduced costs shifted by the unknown row potential of r: a constant
+        row, base = r, 0.0
+        free_col = -1
+        free_dist = 0.0
+        while True:
+            for e in range(row_start[row], row_start[row + 1]):
+                j = col[e]
+                if done[j]:
+                    continue
+                d = base + weight[e] - v[j]
+                if d < dist[j]:
+                    if dist[j] == np.inf:
+                        touched[n_touched] = j
+                        n_touched += 1
+                    dist[j] = d
+                    reached_from[j] = row
+                    reached_weight[j] = weight[e]
+                    heapq.heappush(heap, (d, j))
+            found = False
+            while len(heap):
+                d, j = heapq.heappop(heap)
+                if done[j] or d > dist[j]:
+                    continue
+                done[j] = True
+                finished[n_finished] = j
+                n_finished += 1
+                if row_of_col[j] < 0:
+                    free_col, free_dist = j, d
+                    found = True
+                    break
+                # the matched edge into j has reduced cost 0: its row is reached at distance d
+                row = row_of_col[j]
+                base = d - (matched_weight[j] - v[j])
+                break
+            else:
+                raise ValueError("no assignment of every row exists")
+            if found:
+                break
+        for s in range(n_finished):
+            j = finished[s]
+            v[j] += dist[j] - free_dist
+        j = free_col
+        while True:
+            i = reached_from[j]
+            previous = col_of_row[i]
+            row_of_col[j] = i
+            col_of_row[i] = j
+            matched_weight[j] = reached_weight[j]
+            if i == r:
+                break
+            j = previous
+        for s in range(n_touched):
+            dist[touched[s]] = np.inf
+        for s in range(n_finished):
+            done[finished[s]] = False
+    return col_of_row

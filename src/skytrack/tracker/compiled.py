@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from skytrack.association.gnn import MAX_DENSE_CLUSTER, sparse_assignment
+from skytrack.association.gnn import MAX_DENSE_CLUSTER
 from skytrack.core.plots import PlotBatch
 from skytrack.filters.base import GaussianState
 from skytrack.filters.kalman import KalmanFilter
@@ -23,7 +23,6 @@ from skytrack.geo.polar import EARTH_RADIUS_M
 from skytrack.models.conversion import ConvertedPlots
 from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batch
 from skytrack.models.motion import ConstantVelocityAxis
-from skytrack.tracker.kernels import update_write_cv
 from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.stage_kernel import stage_cv, stages_cv
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
@@ -73,47 +72,18 @@ class CompiledStages:
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
         miss = self.scorer.gate(dim + 1)
-        stage = 0
-        while True:
-            stage, candidates, manoeuvre_hits, *big = stages_cv(
-                stage, self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P,
-                columns["t"], columns["alt_m"], psi, q_big, plots.time,
-                converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-                self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim), replace_height,
-                float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
-                sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s],
-                self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg,
-                filter_updates, columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"],
-                columns["mode3a"], columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
-            )
-            self.stats["candidate_pairs"] += candidates
-            self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
-            if stage == 3:
-                return
-            # clusters too large for the dense solver: one sparse matching, then their updates
-            rows, plot_rows, d2 = big[:3]
-            chosen = sparse_assignment(rows, plot_rows, d2, np.full(len(bank), miss))
-            rows, plot_rows = rows[chosen], plot_rows[chosen]
-            self._update_chosen(rows, plot_rows, big, chosen, stage == 1, two_point, plots)
-            hit[rows] = True
-            plot_used[plot_rows] = True
-            if stage == 1:
-                self.stats["manoeuvre_gate_hits"] += len(rows)
-            stage += 1
-
-    def _update_chosen(self, rows, plot_rows, big, chosen, forced: bool, two_point: bool, plots: PlotBatch) -> None:
-        """Kalman update and bank columns of the ``chosen`` pairs of large clusters (``big`` is what the
-        stage kernel returned for them: pair indices, ``d^2``, prediction, Cholesky factor, measurement)."""
-        _, _, d2, x_pred, P_pred, chol, position, covariance = big
-        storage, columns = self.bank.storage, self.bank.column_storage
-        psi_enabled, psi, nis_avg, filter_updates, _, on, off, memory = self._switch_arrays()
-        update_write_cv(
-            rows, plot_rows, x_pred[chosen], P_pred[chosen], chol[chosen], d2[chosen], position[chosen],
-            covariance[chosen], self.dim, forced, psi_enabled, on, off, memory, two_point, storage.x, storage.P, psi,
-            nis_avg, filter_updates, columns["t"], columns["n_updates"], columns["n_misses"], columns["z_hint"],
-            columns["alt_m"], columns["status"], columns["mode3a"], columns["icao24"], columns["iff"], plots.time,
-            plots.mode_c_m, plots.mode3a, plots.mode_s, plots.iff,
+        candidates, manoeuvre_hits = stages_cv(
+            self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P, columns["t"],
+            columns["alt_m"], psi, q_big, plots.time, converted.position, converted.covariance, plots.mode_c_m,
+            plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim),
+            replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M,
+            sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2,
+            self._rotation[s], self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point,
+            nis_avg, filter_updates, columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"],
+            columns["mode3a"], columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
         )
+        self.stats["candidate_pairs"] += candidates
+        self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
 
     def _switch_arrays(self):
         """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""
@@ -190,7 +160,7 @@ class CompiledStages:
         replace_height = not sensor.is_3d
         two_point = self.config.initiation.method == "two-point"
         miss = self.scorer.gate(dim + 1)
-        rows, plot_rows, candidates, *big = stage_cv(
+        rows, plot_rows, candidates = stage_cv(
             tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
             plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
             self.fused_q, dim, self.search_scale, margin_s,
@@ -202,13 +172,6 @@ class CompiledStages:
             columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
         )
         self.stats["candidate_pairs"] += candidates
-        big_t, big_p, d2 = big[:3]
-        if len(big_t):
-            # clusters too large for the dense solver: one sparse matching, then their updates
-            chosen = sparse_assignment(big_t, big_p, d2, np.full(len(tracks), miss))
-            extra_rows, extra_plots = tracks[big_t[chosen]], free[big_p[chosen]]
-            self._update_chosen(extra_rows, extra_plots, big, chosen, manoeuvre, two_point, plots)
-            rows, plot_rows = np.concatenate([rows, extra_rows]), np.concatenate([plot_rows, extra_plots])
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows

@@ -2,10 +2,10 @@
 
 :func:`stage_cv` chains :func:`skytrack.tracker.kernels.gate_stage_cv` (prediction, search,
 chi-square gate), :func:`skytrack.association.kernels.assign_clusters` (global nearest
-neighbour: lone pairs and clusters up to ``max_dense`` nodes) and
-:func:`skytrack.tracker.kernels.update_write_cv` (Kalman update, psi switch, bank columns) so
-that a stage costs one dispatch from Python.  Pairs of larger clusters are returned, with what
-their update needs, for the sparse solver in Python; they are rare.
+neighbour: lone pairs, dense clusters up to ``max_dense`` nodes, sparse shortest paths above)
+and :func:`skytrack.tracker.kernels.update_write_cv` (Kalman update, psi switch, bank
+columns) so that a stage costs one dispatch from Python; :func:`stages_cv` runs every stage of
+a window in one call.
 """
 
 from __future__ import annotations
@@ -23,13 +23,12 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
              z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff):
-    """Returns (bank rows, plot rows) updated, the number of candidates, and the big-cluster pairs
-    (local track and plot indices, ``d^2``, predicted state, Cholesky factor, measurement)."""
+    """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, x_pred, P_pred, position, covariance, chol, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
-    chosen, big = assign_clusters(kt, kp, d2, np.full(len(tracks), miss), len(tracks), len(free), max_dense)
+    chosen = assign_clusters(kt, kp, d2, np.full(len(tracks), miss), len(tracks), len(free), max_dense)
     pick = np.flatnonzero(chosen)
     rows = np.empty(len(pick), np.int64)
     plot_rows = np.empty(len(pick), np.int64)
@@ -40,34 +39,27 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
                     covariance[pick], ndim, forced, psi_enabled, psi_on, psi_off, psi_memory, two_point, x_all, P_all,
                     psi_all, nis_avg, filter_updates, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
                     icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
-    rest = np.flatnonzero(big)
-    return (rows, plot_rows, candidates, kt[rest], kp[rest], d2[rest], x_pred[rest], P_pred[rest], chol[rest],
-            position[rest], covariance[rest])
+    return rows, plot_rows, candidates
 
 
 @njit(cache=True, nogil=True)
-def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
+def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
               plot_mode_s, plot_iff):
-    """The association stages of a window from ``first_stage`` on, in one call: 0 confirmed tracks,
+    """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
     ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
     (:meth:`skytrack.tracker.scan.ScanProcessor.process`).  ``status_now`` is each track's status,
     or -1 when it is too far from the swept sector; ``hit`` and ``plot_used`` are updated.
-
-    Stops after a stage whose assignment has clusters too large for the dense solver and returns
-    their pairs (bank rows, window plot rows, ``d^2``, predicted state, Cholesky factor,
-    measurement) with the stage number; Python solves them and calls again from the next stage.
-    Returns (stage reached, candidates, manoeuvre-gate hits, big-cluster pairs...); the stage
-    reached is 3 when every stage is done.
+    Returns the number of candidate pairs and of manoeuvre-gate hits.
     """
     n_tracks = len(status_now)
     n_plots = len(plot_used)
     candidates = 0
     manoeuvre_hits = 0
-    for stage in range(first_stage, 3):
+    for stage in range(3):
         if stage == 1 and not manoeuvre_gate:
             continue
         count = 0
@@ -95,7 +87,7 @@ def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plo
                 free[m] = j
                 m += 1
         forced = stage == 1
-        rows, plot_rows, found, big_t, big_p, d2, x_pred, P_pred, chol, position, covariance = stage_cv(
+        rows, plot_rows, found = stage_cv(
             tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, stage_t_ref, plot_time, plot_pos,
             plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s,
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
@@ -107,12 +99,7 @@ def stages_cv(first_stage, manoeuvre_gate, status_now, expected, t_ref, hit, plo
             plot_used[plot_rows[c]] = True
         if forced:
             manoeuvre_hits += len(rows)
-        if len(big_t):
-            return (stage, candidates, manoeuvre_hits, tracks[big_t], free[big_p], d2, x_pred, P_pred, chol, position,
-                    covariance)
-    empty = np.zeros(0, np.int64)
-    return (3, candidates, manoeuvre_hits, empty, empty, np.zeros(0), np.zeros((0, 2 * ndim)),
-            np.zeros((0, 2 * ndim, 2 * ndim)), np.zeros((0, ndim, ndim)), np.zeros((0, 3)), np.zeros((0, 3, 3)))
+    return candidates, manoeuvre_hits
 
 
 @njit(cache=True, nogil=True, inline="always")
