@@ -160,7 +160,6 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     kept_p = np.empty(count, np.int64)
     S = np.empty((ndim, ndim))
     w = np.empty(ndim)
-    work = np.empty((4, 3, 3))
     m = 0
     for c in range(count):
         k = out_t[c]
@@ -168,7 +167,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
         _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[m], P_pred[m])
         if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
             place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
-                     pair_pos[m], pair_cov[m], work)
+                     pair_pos[m], pair_cov[m])
         else:
             for a in range(3):
                 pair_pos[m, a] = plot_pos[j, a]
