@@ -88,7 +88,7 @@ def _solve_cluster(pairs, tracks, plots, costs, miss) -> np.ndarray:
 
 
 #: clusters with more tracks plus plots than this are solved on their edges only (sparse)
-MAX_DENSE_CLUSTER = 48
+MAX_DENSE_CLUSTER = 16
 
 
 class GNNAssigner:

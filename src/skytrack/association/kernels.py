@@ -57,24 +57,23 @@ def _find(parent, i):
 
 
 @njit(cache=True, nogil=True)
-def _assign_dense(C):
-    """Optimal assignment of a square cost matrix (shortest augmenting paths with potentials).
-
-    Returns the column of every row.  ``inf`` marks forbidden cells; a finite assignment
-    must exist.
+def _assign_dense(C, n, u, v, p, way, minv, used, col_of_row):
+    """Optimal assignment of the square cost matrix ``C[:n, :n]`` (shortest augmenting paths with
+    potentials) into ``col_of_row[:n]``.  ``inf`` marks forbidden cells; a finite assignment
+    must exist.  ``u, v, p, way, minv, used`` are scratch arrays of at least n + 1 entries of
+    the caller: a window solves thousands of small clusters, and allocating per cluster cost
+    more than solving them.
     """
-    n = C.shape[0]
-    u = np.zeros(n + 1)
-    v = np.zeros(n + 1)
-    p = np.zeros(n + 1, np.int64)
-    way = np.zeros(n + 1, np.int64)
-    minv = np.empty(n + 1)
-    used = np.empty(n + 1, np.bool_)
+    for j in range(n + 1):
+        u[j] = 0.0
+        v[j] = 0.0
+        p[j] = 0
+        way[j] = 0
     for i in range(1, n + 1):
         p[0] = i
         j0 = 0
-        minv[:] = np.inf
-        used[:] = False
+        minv[: n + 1] = np.inf
+        used[: n + 1] = False
         while True:
             used[j0] = True
             i0 = p[j0]
@@ -104,11 +103,9 @@ def _assign_dense(C):
             j0 = j1
             if j0 == 0:
                 break
-    col_of_row = np.empty(n, np.int64)
     for j in range(1, n + 1):
         if p[j] != 0:
             col_of_row[p[j] - 1] = j - 1
-    return col_of_row
 
 
 @njit(cache=True, nogil=True)
@@ -136,6 +133,13 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
         order[start_of[root[k]]] = k
         start_of[root[k]] += 1
     chosen = np.zeros(n_pairs, np.bool_)
+    dense = max(min(max_dense, n_tracks + n_plots), 1)
+    C = np.empty((dense, dense))
+    pair_at = np.empty((dense, dense), np.int64)
+    u, v, minv = np.empty(dense + 1), np.empty(dense + 1), np.empty(dense + 1)
+    p, way = np.empty(dense + 1, np.int64), np.empty(dense + 1, np.int64)
+    used = np.empty(dense + 1, np.bool_)
+    cols = np.empty(dense, np.int64)
     track_local = np.full(n_tracks, -1, np.int64)
     plot_local = np.full(n_plots, -1, np.int64)
     start = 0
@@ -163,8 +167,8 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
             _solve_sparse_cluster(order[start:stop], ti, pj, cost, miss, track_local, plot_local, nt, npl, chosen)
         else:
             size = nt + npl
-            C = np.full((size, size), np.inf)
-            pair_at = np.full((nt, npl), -1, np.int64)
+            C[:size, :size] = np.inf
+            pair_at[:nt, :npl] = -1
             for s in range(start, stop):
                 k = order[s]
                 a = track_local[ti[k]]
@@ -176,7 +180,7 @@ def assign_clusters(ti, pj, cost, miss, n_tracks, n_plots, max_dense):
                 C[nt + b, b] = 0.0
                 for a in range(nt):
                     C[nt + b, npl + a] = 0.0
-            cols = _assign_dense(C)
+            _assign_dense(C, size, u, v, p, way, minv, used, cols)
             for a in range(nt):
                 b = cols[a]
                 if b < npl and pair_at[a, b] >= 0:

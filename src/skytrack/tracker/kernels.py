@@ -8,13 +8,14 @@ call what :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from p
    spread ``sqrt(lambda_max)``;
 2. candidate plots within ``scale (s_t + s_p) + margin_t``, found in a grid of spread classes,
    columns of x and sorted y (:mod:`skytrack.association.grid_kernels`);
-3. each candidate predicted to its plot's own time (spec 000 Theorem 2 / R7);
+3. each candidate's position predicted to its plot's own time (spec 000 Theorem 2 / R7; the
+   update predicts the chosen pairs in full, with the same arithmetic);
 4. the pair's measurement: the plot's converted position, or — a 2-D plot without Mode C whose
    track has a Mode C altitude — the plot placed again at that altitude on the sphere model
    (the same formulas as :func:`skytrack.geo.polar.slant_to_local` and
    :func:`skytrack.models.conversion.convert_plots`);
 5. ``S = P_pos + R``, its Cholesky factor, ``d^2``; pairs with ``d^2 <= gate`` are returned
-   with their predicted state, measurement and factor.
+   with their measurement.
 
 The composed path (numpy reference parts) is kept and tested equal to this kernel.
 """
@@ -148,23 +149,23 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
                                   ndim)
     count = len(out_t)
-    # 3.-5. exact gate of every candidate at its plot's time; pairs inside are written to the
-    #       next free slot ``m`` (compaction as we go, no fancy indexing afterwards)
-    x_pred = np.empty((count, n))
-    P_pred = np.empty((count, n, n))
+    # 3.-5. exact gate of every candidate at its plot's time, on the position block of the
+    #       prediction only (the update predicts the chosen pairs in full); pairs inside are
+    #       written to the next free slot ``m`` (compaction as we go)
     pair_pos = np.empty((count, 3))
     pair_cov = np.empty((count, 3, 3))
-    L = np.zeros((count, ndim, ndim))
     d2_out = np.empty(count)
     kept_t = np.empty(count, np.int64)
     kept_p = np.empty(count, np.int64)
-    S = np.empty((ndim, ndim))
+    x_pos = np.empty(ndim)
+    P_pos = np.empty((ndim, ndim))
+    L = np.zeros((ndim, ndim))
     w = np.empty(ndim)
     m = 0
     for c in range(count):
         k = out_t[c]
         j = out_p[c]
-        _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pred[m], P_pred[m])
+        _predict_cv_position(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pos, P_pos)
         if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
             place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
                      pair_pos[m], pair_cov[m])
@@ -173,55 +174,80 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 pair_pos[m, a] = plot_pos[j, a]
                 for b in range(3):
                     pair_cov[m, a, b] = plot_cov[j, a, b]
-        for a in range(ndim):
-            for b in range(ndim):
-                S[a, b] = P_pred[m, 2 * a, 2 * b] + pair_cov[m, a, b]
-        for a in range(ndim):
-            for b in range(a + 1, ndim):
-                mean = 0.5 * (S[a, b] + S[b, a])
-                S[a, b] = mean
-                S[b, a] = mean
-        ok = True
-        for a in range(ndim):
-            for b in range(a + 1):
-                acc = S[a, b]
-                for l in range(b):
-                    acc -= L[m, a, l] * L[m, b, l]
-                if a == b:
-                    if acc <= 0.0:
-                        ok = False
-                        break
-                    L[m, a, a] = np.sqrt(acc)
-                else:
-                    L[m, a, b] = acc / L[m, b, b]
-            if not ok:
-                break
-        if not ok:
+        if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue  # S not positive definite: the pair cannot be gated
         total = 0.0
         for a in range(ndim):
-            acc = pair_pos[m, a] - x_pred[m, 2 * a]
+            acc = pair_pos[m, a] - x_pos[a]
             for l in range(a):
-                acc -= L[m, a, l] * w[l]
-            w[a] = acc / L[m, a, a]
+                acc -= L[a, l] * w[l]
+            w[a] = acc / L[a, a]
             total += w[a] * w[a]
         if total <= gate:
             d2_out[m] = total
             kept_t[m] = k
             kept_p[m] = j
             m += 1
-    return (kept_t[:m], kept_p[:m], d2_out[:m], x_pred[:m], P_pred[:m], pair_pos[:m], pair_cov[:m], L[:m], count)
+    return kept_t[:m], kept_p[:m], d2_out[:m], pair_pos[:m], pair_cov[:m], count
 
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _predict_cv_position(x, P, dt, q, scale, ndim, x_out, P_out):
+    """The position part of :func:`_predict_cv_row` (same operations, so the same bits): the
+    predicted position and its covariance block, symmetrised as there."""
+    step = abs(dt)
+    f = dt
+    q00 = q * step * step * step / 3.0 * scale
+    for a in range(ndim):
+        x_out[a] = x[2 * a] + f * x[2 * a + 1]
+    for a in range(ndim):
+        for b in range(ndim):
+            i = 2 * a
+            j = 2 * b
+            r00 = P[i, j] + f * P[i + 1, j]
+            r01 = P[i, j + 1] + f * P[i + 1, j + 1]
+            P_out[a, b] = r00 + r01 * f
+            if a == b:
+                P_out[a, b] += q00
+    for a in range(ndim):
+        for b in range(a + 1, ndim):
+            mean = 0.5 * (P_out[a, b] + P_out[b, a])
+            P_out[a, b] = mean
+            P_out[b, a] = mean
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _innovation_factor(P_pos, R, ndim, L):
+    """Lower Cholesky factor of ``S = P_pos + R`` (symmetrised) into ``L``; False when S is not
+    positive definite."""
+    for a in range(ndim):
+        for b in range(a + 1):
+            if a == b:
+                s_ab = P_pos[a, a] + R[a, a]
+            else:
+                s_ab = 0.5 * ((P_pos[a, b] + R[a, b]) + (P_pos[b, a] + R[b, a]))
+            acc = s_ab
+            for l in range(b):
+                acc -= L[a, l] * L[b, l]
+            if a == b:
+                if acc <= 0.0:
+                    return False
+                L[a, a] = np.sqrt(acc)
+            else:
+                L[a, b] = acc / L[b, b]
+    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_cov, ndim, manoeuvre, psi_enabled,
+def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, manoeuvre, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
                     z_hint, alt_m, status, mode3a, icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s,
                     plot_iff):
     """Kalman update (Joseph form) of the chosen pairs, the psi switch, and the bank's columns, in place.
 
-    Same arithmetic as :func:`skytrack.filters.kernels.update_dense` with the position-selecting
+    Each chosen pair is predicted to its plot's time (process noise ``q_big`` times the model's
+    while the track's psi is set or when ``manoeuvre``), with the gate's arithmetic, so ``S``
+    and its factor are the gate's to the bit.  Same arithmetic as :func:`skytrack.filters.kernels.update_dense` with the position-selecting
     ``H``, then the spec 000 S3 switch of :class:`~skytrack.filters.maneuver.ManoeuvreSwitchFilter`
     and :meth:`skytrack.tracker.scan.ScanProcessor._write_updates` (two-point initiation after a
     tentative track's second plot, hit bookkeeping, altitude and identity).
@@ -234,12 +260,18 @@ def update_write_cv(rows, plot_rows, x_pred, P_pred, chol, d2, pair_pos, pair_co
     KR = np.empty((n, m))
     x_new = np.empty(n)
     P_new = np.empty((n, n))
+    xp = np.empty(n)
+    Pp = np.empty((n, n))
+    P_pos = np.empty((m, m))
+    L = np.zeros((m, m))
     for c in range(len(rows)):
         k = rows[c]
         j = plot_rows[c]
-        xp = x_pred[c]
-        Pp = P_pred[c]
-        L = chol[c]
+        _predict_cv_row(x[k], P[k], plot_time[j] - t[k], q, q_big if (manoeuvre or psi[k]) else 1.0, ndim, xp, Pp)
+        for a in range(m):
+            for b in range(m):
+                P_pos[a, b] = Pp[2 * a, 2 * b]
+        _innovation_factor(P_pos, pair_cov[c], m, L)  # positive definite: the gate factored it
         # K = P H^T S^-1 with H selecting positions: P H^T is the position columns of P
         for i in range(n):
             for a in range(m):

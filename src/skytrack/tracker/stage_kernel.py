@@ -24,7 +24,7 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
              z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
-    kt, kp, d2, x_pred, P_pred, position, covariance, chol, candidates = gate_stage_cv(
+    kt, kp, d2, position, covariance, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
@@ -35,9 +35,8 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
     for c in range(len(pick)):
         rows[c] = tracks[kt[pick[c]]]
         plot_rows[c] = free[kp[pick[c]]]
-    update_write_cv(rows, plot_rows, x_pred[pick], P_pred[pick], chol[pick], d2[pick], position[pick],
-                    covariance[pick], ndim, forced, psi_enabled, psi_on, psi_off, psi_memory, two_point, x_all, P_all,
-                    psi_all, nis_avg, filter_updates, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
+    update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
+                    psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
                     icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
     return rows, plot_rows, candidates
 
