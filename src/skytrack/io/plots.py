@@ -16,8 +16,6 @@ or since the earliest timestamp with a warning when no epoch is known.  The
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, overload
 
@@ -42,34 +40,17 @@ from skytrack.io.checks import (
     time_column,
 )
 from skytrack.io.errors import ReadReport
-from skytrack.io.schema import PLOT_SCHEMA
-from skytrack.io.tables import TableSource, iter_csv, iter_parquet, load_table, table_format, write_table
-
-
-@dataclass
-class _PlotStream:
-    """What the checks of one chunk pass on to the next, so that a file read in chunks is
-    checked like a whole file: the epoch inferred from the first chunk with timestamps,
-    the latest time of every sensor (time order across chunks), and the value ranges
-    behind the unit warnings (given once, for the whole file)."""
-
-    epoch: pd.Timestamp | None = None
-    last_time: dict[str, float] = field(default_factory=dict)
-    rows: int = 0
-    largest_range: float = -math.inf
-    largest_azimuth: float = -math.inf
-
-    def add_units(self, range_m: np.ndarray, azimuth: np.ndarray) -> None:
-        self.rows += len(range_m)
-        self.largest_range = max(self.largest_range, float(np.nanmax(np.asarray(range_m, dtype=float), initial=-np.inf)))
-        self.largest_azimuth = max(self.largest_azimuth, float(np.nanmax(np.asarray(azimuth, dtype=float), initial=-np.inf)))
-
-    def add_times(self, plots: pd.DataFrame) -> None:
-        if len(plots) == 0:
-            return
-        latest = pd.Series(plots["time"].to_numpy()).groupby(plots["sensor"].to_numpy(dtype=object)).max()
-        for sensor, time in latest.items():
-            self.last_time[str(sensor)] = max(float(time), self.last_time.get(str(sensor), -math.inf))
+from skytrack.io.plot_arrays import PlotStream, plot_batch_from_arrow
+from skytrack.io.schema import PLOT_SCHEMA, TEXT_COLUMNS
+from skytrack.io.tables import (
+    TableSource,
+    chunk_to_frame,
+    iter_csv_tables,
+    iter_parquet_tables,
+    load_table,
+    table_format,
+    write_table,
+)
 
 
 def _validate_plots(
@@ -79,7 +60,7 @@ def _validate_plots(
     epoch_utc: object,
     lenient: bool,
     report: ReadReport,
-    stream: _PlotStream | None = None,
+    stream: PlotStream | None = None,
 ) -> pd.DataFrame:
     """Check and coerce one table of plots; ``stream`` carries state from earlier chunks of the file."""
     require_columns(df, source, [("time", "timestamp"), "sensor", "range_m", "azimuth_deg"], "plots")
@@ -142,8 +123,9 @@ def _validate_plots(
     else:
         stream.add_units(range_m, azimuth)
     df = order_columns(checks.finish(df, lenient=lenient, report=report), PLOT_SCHEMA)
-    if stream is not None:
-        stream.add_times(df)
+    if stream is not None and len(df):
+        latest = pd.Series(df["time"].to_numpy()).groupby(df["sensor"].to_numpy(dtype=object)).max()
+        stream.add_latest(latest.index, latest.to_numpy())
     return df
 
 
@@ -186,12 +168,12 @@ _UNIT_CHECK_MIN_ROWS = 50
 
 def _warn_implausible_units(range_m: np.ndarray, azimuth: np.ndarray, report: ReadReport) -> None:
     """Warn when the values look like another unit than the column name says."""
-    whole = _PlotStream()
+    whole = PlotStream()
     whole.add_units(range_m, azimuth)
     _warn_units(whole, report)
 
 
-def _warn_units(seen: _PlotStream, report: ReadReport) -> None:
+def _warn_units(seen: PlotStream, report: ReadReport) -> None:
     if seen.rows < _UNIT_CHECK_MIN_ROWS:
         return
     if 0 < seen.largest_range < 1000.0:
@@ -241,18 +223,53 @@ def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch
     further bad rows covers the rows read so far (malformed CSV lines are counted in the
     whole file).
     """
+    yield from _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, as_batches=False)
+
+
+def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None,
+                      report=None):
+    """:func:`iter_plots` as :class:`~skytrack.core.plots.PlotBatch` chunks: parsed once, in SI
+    units with integer identity codes, ready for the tracker (which does not check them again).
+    Row numbers count the plots kept (what the tracker's messages refer to).
+
+    A chunk whose every row is good goes from Arrow arrays to the batch directly
+    (:mod:`skytrack.io.plot_arrays`); any other chunk is validated as by :func:`iter_plots`.
+    """
+    names = sensors.names
+    is_3d = [s.is_3d for s in sensors.sensors]
+    first_row = 0
+    for chunk in _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, as_batches=True):
+        if isinstance(chunk, PlotBatch):
+            chunk.row += first_row
+        else:
+            chunk = PlotBatch.from_frame(chunk, names, is_3d, str(path), first_row=first_row, check=False)
+        yield chunk
+        first_row += len(chunk)
+
+
+def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as_batches: bool):
+    """The validated chunks of a plots file: DataFrames, or with ``as_batches`` a
+    :class:`PlotBatch` for every chunk the fast path takes (rows numbered from 0) and a
+    DataFrame for the others."""
     if chunk_rows < 1:
         raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
     report = report if report is not None else ReadReport(file=str(path))
     if table_format(path) == "parquet":
-        chunks = iter_parquet(path, chunk_rows)
+        text = sorted(TEXT_COLUMNS) if as_batches else ()
+        chunks = iter_parquet_tables(path, chunk_rows, text_as_dictionary=text)
     else:
-        chunks = iter_csv(path, chunk_rows, lenient=lenient, report=report)
-    stream = _PlotStream()
+        chunks = iter_csv_tables(path, chunk_rows, lenient=lenient, report=report)
+    epoch_text = epoch_utc if epoch_utc is not None else (sensors.epoch_utc if sensors is not None else None)
+    stream = PlotStream()
     kept = 0
-    for frame, source in chunks:
-        report.rows_read += len(frame)
-        plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report, stream)
+    for table, source in chunks:
+        report.rows_read += len(table)
+        plots = plot_batch_from_arrow(table, sensors, stream) if as_batches and sensors is not None else None
+        if plots is not None and epoch_text is not None:
+            parse_epoch(epoch_text)  # a bad epoch is an error even when no timestamp needs it
+        if plots is None:
+            frame = chunk_to_frame(table, source)
+            plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report, stream)
         kept += len(plots)
         report.rows_kept = kept  # the validator sets the count of its own chunk
         report.warnings[:] = dict.fromkeys(report.warnings)  # each chunk repeats conversions' warnings
@@ -260,19 +277,6 @@ def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch
             yield plots
     _warn_units(stream, report)
     emit_warnings(report, lenient)
-
-
-def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None,
-                      report=None):
-    """:func:`iter_plots` as :class:`~skytrack.core.plots.PlotBatch` chunks: parsed once, in SI
-    units with integer identity codes, ready for the tracker (which does not check them again).
-    Row numbers count the plots kept (what the tracker's messages refer to)."""
-    names = sensors.names
-    is_3d = [s.is_3d for s in sensors.sensors]
-    first_row = 0
-    for frame in iter_plots(path, sensors, lenient, chunk_rows=chunk_rows, epoch_utc=epoch_utc, report=report):
-        yield PlotBatch.from_frame(frame, names, is_3d, str(path), first_row=first_row, check=False)
-        first_row += len(frame)
 
 
 def write_plots(df: pd.DataFrame, path: str | Path, *, sensors: SensorSet | None = None) -> Path:

@@ -25,9 +25,9 @@ import csv
 import gzip
 import io
 from collections import Counter
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -85,6 +85,8 @@ class TableSource:
     n_fields: int = 0
     n_invalid_lines: int = 0
     row_offset: int = 0  # rows of the file before this DataFrame's first row (chunked reading)
+    #: text columns a reader handed out dictionary-encoded although the file holds plain text
+    dictionary_text: tuple[str, ...] = ()
     _simple_layout: bool | None = field(default=None, repr=False)
     _scanned_lines: list[int] = field(default_factory=list, repr=False)
     _invalid_lines: list[tuple[int, int]] = field(default_factory=list, repr=False)
@@ -223,13 +225,28 @@ def _check_exists(path: Path) -> None:
         raise InputError("file not found", file=str(path))
 
 
+def _reason(exc: Exception) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
 def _parquet_error(path: Path, exc: Exception) -> InputError:
-    reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-    return InputError(f"not a readable Parquet file ({reason})", file=str(path))
+    return InputError(f"not a readable Parquet file ({_reason(exc)})", file=str(path))
 
 
-def arrow_to_frame(table: pa.Table | pa.RecordBatch) -> pd.DataFrame:
-    """An Arrow table as a DataFrame, text as :data:`~skytrack.io.schema.STRING_DTYPE`."""
+def arrow_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource | None = None) -> pd.DataFrame:
+    """An Arrow table as a DataFrame, text as :data:`~skytrack.io.schema.STRING_DTYPE`.
+
+    Columns a reader handed out dictionary-encoded (``source.dictionary_text``) become plain
+    text again first: the DataFrame is the one a plain read gives.
+    """
+    if source is not None and source.dictionary_text:
+        names = table.schema.names
+        columns = [
+            column.cast(column.type.value_type)
+            if name in source.dictionary_text and pa.types.is_dictionary(column.type) else column
+            for name, column in zip(names, table.columns)
+        ]
+        table = pa.Table.from_arrays(columns, names=names)
     return table.to_pandas(types_mapper=_string_mapper)
 
 
@@ -240,19 +257,27 @@ def _read_parquet(path: Path) -> pd.DataFrame:
         raise _parquet_error(path, exc) from None
 
 
-def iter_parquet_tables(path: str | Path, chunk_rows: int) -> Iterator[tuple[pa.RecordBatch, TableSource]]:
+def iter_parquet_tables(
+    path: str | Path, chunk_rows: int, *, text_as_dictionary: Sequence[str] = ()
+) -> Iterator[tuple[pa.RecordBatch, TableSource]]:
     """Read a Parquet file in Arrow record batches of at most ``chunk_rows`` rows (bounded memory).
 
     Each chunk comes with a :class:`TableSource` whose ``row_offset`` makes error messages
-    name rows of the whole file.  Duplicate column names raise :class:`InputError`.
+    name rows of the whole file.  Duplicate column names raise :class:`InputError`.  The
+    text columns named in ``text_as_dictionary`` are read dictionary-encoded, as Parquet
+    stores them (no string is built); their names are in ``source.dictionary_text``.
     """
     path = Path(path)
     _check_exists(path)
     offset = 0
     try:
-        parquet = pq.ParquetFile(path)
+        stored = pq.read_schema(path)
+        unique = len(set(stored.names)) == len(stored.names)  # else the first chunk raises, as always
+        text = tuple(f.name for f in stored if unique and f.name in text_as_dictionary
+                     and (pa.types.is_string(f.type) or pa.types.is_large_string(f.type)))
+        parquet = pq.ParquetFile(path, read_dictionary=list(text) or None)
         for batch in parquet.iter_batches(batch_size=chunk_rows):
-            source = TableSource(display=str(path), path=path, row_offset=offset)
+            source = TableSource(display=str(path), path=path, row_offset=offset, dictionary_text=text)
             _check_unique_columns(batch.schema.names, source)
             yield batch, source
             offset += batch.num_rows
@@ -262,13 +287,19 @@ def iter_parquet_tables(path: str | Path, chunk_rows: int) -> Iterator[tuple[pa.
 
 def iter_parquet(path: str | Path, chunk_rows: int) -> Iterator[tuple[pd.DataFrame, TableSource]]:
     """:func:`iter_parquet_tables` in DataFrames."""
-    path = Path(path)
     for batch, source in iter_parquet_tables(path, chunk_rows):
-        try:
-            frame = arrow_to_frame(batch)
-        except (pa.ArrowException, OSError) as exc:
-            raise _parquet_error(path, exc) from None
-        yield frame, source
+        yield chunk_to_frame(batch, source), source
+
+
+def chunk_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource) -> pd.DataFrame:
+    """:func:`arrow_to_frame` of a chunk of a streamed file; a failure is reported as the
+    streams report a file they cannot read."""
+    try:
+        return arrow_to_frame(table, source)
+    except (pa.ArrowException, OSError) as exc:
+        if source.is_csv:
+            raise InputError(f"cannot read as CSV ({_reason(exc)})", file=source.display) from None
+        raise _parquet_error(source.path, exc) from None
 
 
 def count_rows(path: str | Path) -> int | None:
@@ -312,8 +343,7 @@ def _read_csv(path: Path, text_columns: frozenset[str], source: TableSource) -> 
     try:
         table = pcsv.read_csv(path, parse_options=parse, convert_options=convert)
     except (pa.ArrowException, OSError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"cannot read as CSV ({reason})", file=str(path)) from None
+        raise InputError(f"cannot read as CSV ({_reason(exc)})", file=str(path)) from None
     return arrow_to_frame(table)
 
 
@@ -343,7 +373,7 @@ def iter_csv(
     """:func:`iter_csv_tables` in DataFrames."""
     for table, source in iter_csv_tables(path, chunk_rows, text_columns=text_columns, lenient=lenient,
                                          report=report, block_bytes=block_bytes):
-        yield arrow_to_frame(table), source
+        yield chunk_to_frame(table, source), source
 
 
 def iter_csv_tables(
@@ -433,8 +463,7 @@ def iter_csv_tables(
                 rest = table.slice(chunk_rows)
                 pending, pending_rows = rest.to_batches(), rest.num_rows
     except (pa.ArrowException, OSError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"cannot read as CSV ({reason})", file=str(path)) from None
+        raise InputError(f"cannot read as CSV ({_reason(exc)})", file=str(path)) from None
     finally:
         if reader is not None:
             reader.close()
