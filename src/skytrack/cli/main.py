@@ -50,11 +50,11 @@ def reports_input_errors(command):
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
-        from skytrack.sim import ScenarioError
-
+        # skytrack.sim.ScenarioError is a ValueError: importing the simulator here to name it
+        # would cost every command (``track`` too) a good part of a second
         try:
             return command(*args, **kwargs)
-        except (ValueError, KeyError, FileNotFoundError, ScenarioError) as exc:
+        except (ValueError, KeyError, FileNotFoundError) as exc:
             message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
             _fail(str(message))
 
