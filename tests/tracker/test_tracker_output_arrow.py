@@ -119,9 +119,10 @@ def test_identity_text_as_arrow_is_the_pandas_text():
     codes = np.array([-1, 0o1200, 0o7777, 0o1200, 0, -1], dtype=np.int32)
     for as_arrow, as_pandas in ((mode3a_text, decode_mode3a), (icao24_text, decode_icao24)):
         text = as_arrow(codes)
-        assert text.type == pa.string()
-        pd.testing.assert_extension_array_equal(pd.array(text, dtype="str"), as_pandas(codes))
+        assert text.type.value_type == pa.string() and text.dictionary.null_count == 0
+        pd.testing.assert_extension_array_equal(pd.array(text.dictionary_decode(), dtype="str"), as_pandas(codes))
     iff = np.array([2, -1, 0, 1], dtype=np.int8)
     assert iff_text(iff).to_pylist() == ["undetermined", None, "friend", "foe"]
+    assert sorted(iff_text(iff).dictionary.to_pylist()) == ["foe", "friend", "undetermined"]
     assert list(decode_iff(iff).fillna("-")) == ["undetermined", "-", "friend", "foe"]
     assert mode3a_text(codes).to_pylist() == [None, "1200", "7777", "1200", "0000", None]

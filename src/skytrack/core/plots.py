@@ -193,36 +193,35 @@ def decode_iff(codes: np.ndarray):
 
 
 def mode3a_text(codes: np.ndarray):
-    """:func:`decode_mode3a` as a pyarrow string array (what a table writer takes)."""
+    """:func:`decode_mode3a` as dictionary-encoded pyarrow text (what a table writer takes)."""
     return _decode(codes, "{:04o}")
 
 
 def icao24_text(codes: np.ndarray):
-    """:func:`decode_icao24` as a pyarrow string array."""
+    """:func:`decode_icao24` as dictionary-encoded pyarrow text."""
     return _decode(codes, "{:06x}")
 
 
 def iff_text(codes: np.ndarray):
-    """:func:`decode_iff` as a pyarrow string array."""
+    """:func:`decode_iff` as dictionary-encoded pyarrow text."""
     return _decode(codes, None)
 
 
 def _as_pandas_text(values):
-    return pd.array(values, dtype="str")
+    return pd.array(values.dictionary_decode(), dtype="str")
 
 
 def _decode(codes: np.ndarray, form: str | None):
-    """Text of integer codes as a pyarrow string array (null where the code is -1).
+    """Text of integer codes as a pyarrow dictionary array (null where the code is -1).
 
     Each distinct code is formatted once (pyarrow dictionary encoding), so decoding a drain's
-    rows costs a hash pass, not a Python call per row.
+    rows costs a hash pass, not a Python call per row; a Parquet writer stores the
+    dictionary as it is, without hashing the texts again.
     """
     import pyarrow as pa
 
-    encoded = pa.array(np.asarray(codes, dtype=np.int32)).dictionary_encode()
+    codes = np.asarray(codes, dtype=np.int32)
+    encoded = pa.array(codes, mask=codes < 0).dictionary_encode()
     values = encoded.dictionary.to_numpy().tolist()
-    if form is None:
-        texts = [IFF_VALUES[c] if c >= 0 else None for c in values]
-    else:
-        texts = [form.format(c) if c >= 0 else None for c in values]
-    return pa.array(texts, type=pa.string()).take(encoded.indices)
+    texts = [IFF_VALUES[c] for c in values] if form is None else [form.format(c) for c in values]
+    return pa.DictionaryArray.from_arrays(encoded.indices, pa.array(texts, type=pa.string()))

@@ -19,6 +19,7 @@ stream encodes them once): each distinct value is checked and parsed once.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ from skytrack.geo.sensors import SensorSet
 #: identity codes as the detailed checks accept them (mode_s is lower-cased there first)
 _MODE3A = re.compile(r"[0-7]{4}")
 _ICAO24_EITHER_CASE = re.compile(r"[0-9a-fA-F]{6}")
+_IFF_CODES = {value: k for k, value in enumerate(IFF_VALUES)}
 _REQUIRED = ("time", "sensor", "range_m", "azimuth_deg")
 
 
@@ -86,13 +88,19 @@ def plot_batch_from_arrow(table: pa.Table | pa.RecordBatch, sensors: SensorSet, 
         return None
     if not _scan_ok(table) or not _extra_text_ok(table):
         return None
-    mode3a = _codes(table, "mode3a", lambda text: int(text, 8) if _MODE3A.fullmatch(text) else None, np.int32)
+    mode3a = _codes(table, "mode3a", _mode3a, np.int32)
     mode_s = _codes(table, "mode_s", _icao24, np.int32)
     if "icao24" in names and _codes(table, "icao24", _icao24, np.int32) is None:  # checked like mode_s
         return None
-    iff = _codes(table, "iff", {value: k for k, value in enumerate(IFF_VALUES)}.get, np.int8)
-    platform = [_optional_numbers(table, name, count) for name in PLATFORM_COLUMNS]
-    if mode3a is None or mode_s is None or iff is None or any(values is None for values in platform):
+    iff = _codes(table, "iff", _IFF_CODES.get, np.int8)
+    if names.intersection(PLATFORM_COLUMNS):
+        platform = [_optional_numbers(table, name, count) for name in PLATFORM_COLUMNS]
+        if any(values is None for values in platform):
+            return None
+        platform = np.column_stack(platform)
+    else:
+        platform = np.full((count, 6), np.nan)
+    if mode3a is None or mode_s is None or iff is None:
         return None
 
     stream.add_units(range_m, azimuth)
@@ -103,11 +111,18 @@ def plot_batch_from_arrow(table: pa.Table | pa.RecordBatch, sensors: SensorSet, 
         time=time, sensor=sensor, range_m=range_m * 1.0, azimuth=np.radians(azimuth),
         elevation=np.radians(elevation), range_rate=optional["range_rate_mps"] * 1.0,
         mode_c_m=optional["mode_c_ft"] * FT_TO_M, mode3a=mode3a, mode_s=mode_s, iff=iff,
-        platform=(np.column_stack(platform) if names.intersection(PLATFORM_COLUMNS) else np.full((count, 6), np.nan)),
-        row=np.arange(count, dtype=np.int64),
+        platform=platform, row=np.arange(count, dtype=np.int64),
     )
 
 
+# the same codes come back chunk after chunk (the dictionaries of Parquet row groups):
+# each distinct text is parsed once per run
+@functools.lru_cache(maxsize=1 << 16)
+def _mode3a(text: str) -> int | None:
+    return int(text, 8) if _MODE3A.fullmatch(text) else None
+
+
+@functools.lru_cache(maxsize=1 << 16)
 def _icao24(text: str) -> int | None:
     return int(text, 16) if _ICAO24_EITHER_CASE.fullmatch(text) else None
 
@@ -204,7 +219,8 @@ def _codes(table, name: str, parse, dtype) -> np.ndarray | None:
         return None
     indices, values = found
     parsed = [None if value is None else parse(value) for value in values]
-    if any(code is None and used for code, used in zip(parsed, _used(indices, len(values)), strict=True)):
+    if None in parsed and any(code is None and used for code, used in zip(parsed, _used(indices, len(values)),
+                                                                              strict=True)):
         return None
     lookup = np.array([-1 if code is None else code for code in parsed] + [-1], dtype=dtype)
     return lookup[indices]  # index -1 takes the last entry: absent
@@ -219,8 +235,8 @@ def _sensor_index(table, sensors: SensorSet) -> np.ndarray | None:
     if (indices < 0).any():
         return None
     position = {name: k for k, name in enumerate(sensors.names)}
-    used = _used(indices, len(values))
-    if any(use and (value == "" or value not in position) for value, use in zip(values, used, strict=True)):
+    known = [value != "" and value in position for value in values]
+    if not all(known) and any(use and not ok for ok, use in zip(known, _used(indices, len(values)), strict=True)):
         return None
     lookup = np.array([position.get(value, -1) for value in values], dtype=np.int16)
     return lookup[indices]
@@ -240,7 +256,7 @@ def _in_time_order(time: np.ndarray, sensor: np.ndarray, names: list[str], last_
 
 def _latest_per_sensor(time: np.ndarray, sensor: np.ndarray) -> tuple[list[int], list[float]]:
     """The sensors present in a chunk and the latest time of each."""
-    present = np.unique(sensor)
-    if len(present) == 1:
-        return [int(present[0])], [float(time.max())]
+    if (sensor == sensor[0]).all():
+        return [int(sensor[0])], [float(time.max())]
+    present = np.flatnonzero(np.bincount(sensor))
     return [int(k) for k in present], [float(time[sensor == k].max()) for k in present]

@@ -154,6 +154,10 @@ _STATISTICS_COLUMNS = ("time", "track_id")
 _ARROW_KINDS = {"float": pa.float64(), "int": pa.int64(), "string": pa.string(), "bool": pa.bool_()}
 
 
+def _is_dictionary_text(arrow_type: pa.DataType) -> bool:
+    return pa.types.is_dictionary(arrow_type) and pa.types.is_string(arrow_type.value_type)
+
+
 def _with_missing_arrow_columns(table: pa.Table, schema: TableSchema) -> pa.Table:
     """:func:`add_missing_columns` for an Arrow table: absent columns as nulls of their kind,
     the schema's columns first in its order, then the extra columns in theirs."""
@@ -187,7 +191,10 @@ class TrackWriter:
         fields = []
         for field in table.schema:
             kind = TRACK_SCHEMA[field.name].kind if field.name in TRACK_SCHEMA.names else None
-            fields.append(pa.field(field.name, _ARROW_KINDS[kind] if kind else field.type))
+            arrow_type = _ARROW_KINDS[kind] if kind else field.type
+            if kind == "string" and self.format == "parquet" and _is_dictionary_text(field.type):
+                arrow_type = field.type  # Parquet stores the dictionary as it is (no hashing)
+            fields.append(pa.field(field.name, arrow_type))
         return pa.schema(fields)
 
     def write(self, chunk: pd.DataFrame | pa.Table | None, *, checked: bool = False) -> None:
@@ -211,9 +218,12 @@ class TrackWriter:
                 # dictionary-encode only the text columns: trying it on every float column
                 # costs more than the whole compression and gains nothing; min/max statistics
                 # only where a reader selects row groups by them (they cost a sixth of the write)
-                text = [f.name for f in self._schema if pa.types.is_string(f.type)]
+                text = [f.name for f in self._schema if pa.types.is_string(f.type) or _is_dictionary_text(f.type)]
+                # dictionary columns are plain text in Parquet; without the Arrow schema in the
+                # file, readers read them as the plain text they are (not as categories)
                 self._writer = pq.ParquetWriter(str(self.path), self._schema, use_dictionary=text,
-                                                write_statistics=list(_STATISTICS_COLUMNS))
+                                                write_statistics=list(_STATISTICS_COLUMNS),
+                                                store_schema=not any(_is_dictionary_text(f.type) for f in self._schema))
             else:
                 self._stream = (
                     pa.CompressedOutputStream(str(self.path), "gzip")

@@ -89,34 +89,38 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
 def _status_text(coasting: np.ndarray):
     import pyarrow as pa
 
-    return pa.array(["confirmed", "coasting"]).take(pa.array(coasting.astype(np.int8)))
+    return pa.DictionaryArray.from_arrays(pa.array(coasting.astype(np.int8)), pa.array(["confirmed", "coasting"]))
 
 
 def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, object]:
     """The tracks-table columns (docs/formats.md order) of concatenated instant records.
 
-    Numbers are numpy arrays (NaN where unknown), text columns pyarrow string arrays (null
-    where unknown); :func:`tracks_frame` or :func:`tracks_arrow` make the table.
+    Numbers are numpy arrays (NaN where unknown), text columns pyarrow arrays (null where
+    unknown; dictionary-encoded when the tracker fills them); :func:`tracks_frame` or
+    :func:`tracks_arrow` make the table.
     """
     import pyarrow as pa
 
-    parts = {name: np.concatenate([r[name] for r in records]) for name in records[0]}
+    # matrices are joined transposed: each state component becomes one contiguous column
+    matrices = ("x", "var", "upper")
+    parts = {name: np.concatenate([r[name].T if name in matrices else r[name] for r in records],
+                                  axis=1 if name in matrices else 0) for name in records[0]}
     x, var = parts["x"], parts["var"]
-    count = len(x)
+    count = x.shape[1]
     nan = np.full(count, np.nan)
     pos = np.arange(dim) * order
     vel = pos + 1
     columns: dict[str, object] = {"time": parts["time"], "track_id": parts["track_id"]}
     for axis, name in enumerate("xyz"):
-        columns[name] = x[:, pos[axis]] if axis < dim else nan
+        columns[name] = x[pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
-        columns[name] = x[:, vel[axis]] if axis < dim else nan
+        columns[name] = x[vel[axis]] if axis < dim else nan
     for axis, name in enumerate("xyz"):
-        columns[f"var_{name}"] = var[:, pos[axis]] if axis < dim else nan
+        columns[f"var_{name}"] = var[pos[axis]] if axis < dim else nan
     for axis, name in enumerate(("vx", "vy", "vz")):
-        columns[f"var_{name}"] = var[:, vel[axis]] if axis < dim else nan
-    z = x[:, pos[2]] if dim == 3 else np.nan_to_num(parts["z_hint"])
-    lat, lon, alt = enu_to_geodetic_closed_form(x[:, pos[0]], x[:, pos[1]], z, origin.lat, origin.lon, origin.alt_m)
+        columns[f"var_{name}"] = var[vel[axis]] if axis < dim else nan
+    z = x[pos[2]] if dim == 3 else np.nan_to_num(parts["z_hint"])
+    lat, lon, alt = enu_to_geodetic_closed_form(x[pos[0]], x[pos[1]], z, origin.lat, origin.lon, origin.alt_m)
     columns["lat"], columns["lon"] = lat, lon
     columns["alt_m"] = alt if dim == 3 else parts["alt_m"]
     columns["status"] = _status_text(parts["n_misses"] > 0)
@@ -129,8 +133,8 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     columns["model_probs"] = pa.nulls(count, pa.string())
     if "upper" in parts:
         upper = parts["upper"]
-        for k, name in enumerate(covariance_columns(x.shape[1])):
-            columns[name] = upper[:, k]
+        for k, name in enumerate(covariance_columns(x.shape[0])):
+            columns[name] = upper[k]
     return columns
 
 
@@ -144,7 +148,8 @@ def tracks_frame(columns: dict[str, object]) -> pd.DataFrame:
         if name in EMPTY_COLUMNS:
             frame[name] = np.full(len(values), None, dtype=object)
         elif isinstance(values, pa.Array):
-            frame[name] = pd.array(values, dtype="str")
+            plain = values.dictionary_decode() if isinstance(values, pa.DictionaryArray) else values
+            frame[name] = pd.array(plain, dtype="str")
         else:
             frame[name] = values
     return pd.DataFrame(frame)
@@ -152,7 +157,8 @@ def tracks_frame(columns: dict[str, object]) -> pd.DataFrame:
 
 def tracks_arrow(columns: dict[str, object]):
     """The tracks of :func:`build_table`'s columns as a pyarrow Table, typed as the tracks file
-    stores them: float64 with NaN written as null (as a DataFrame's NaN is), int64, string."""
+    stores them: float64 with NaN written as null (as a DataFrame's NaN is), int64, text
+    (dictionary-encoded where the tracker fills it)."""
     import pyarrow as pa
 
     arrays = []
@@ -160,7 +166,11 @@ def tracks_arrow(columns: dict[str, object]):
         if isinstance(values, pa.Array):
             arrays.append(values)
         elif values.dtype.kind == "f":
-            arrays.append(pa.array(values, type=pa.float64(), from_pandas=True))
+            # NaN becomes null; a mask only where there is a NaN (pyarrow's from_pandas scan
+            # costs 20 times more than numpy's)
+            missing = np.isnan(values)
+            values = np.ascontiguousarray(values, dtype=np.float64)
+            arrays.append(pa.array(values, mask=missing) if missing.any() else pa.array(values))
         else:
             arrays.append(pa.array(values, type=pa.int64()))
     return pa.Table.from_arrays(arrays, names=list(columns))
