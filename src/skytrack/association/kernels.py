@@ -242,11 +242,11 @@ def assign_sparse(row_start, col, weight, n_rows, n_cols):
     done = np.zeros(n_cols, np.bool_)
     touched = np.empty(n_cols, np.int64)
     finished = np.empty(n_cols, np.int64)
+    heap = [(0.0, np.int64(0))]  # one list for every row (typed by its first item)
     for r in range(n_rows):
         n_touched = 0
         n_finished = 0
-        heap = [(0.0, np.int64(0))]
-        heap.pop()
+        heap.clear()
         # distances are reduced costs shifted by the unknown row potential of r: a constant
         row, base = r, 0.0
         free_col = -1
