@@ -13,8 +13,6 @@
 
 from __future__ import annotations
 
-import heapq
-
 import numpy as np
 from numba import njit
 
@@ -242,11 +240,26 @@ def assign_sparse(row_start, col, weight, n_rows, n_cols):
     done = np.zeros(n_cols, np.bool_)
     touched = np.empty(n_cols, np.int64)
     finished = np.empty(n_cols, np.int64)
-    heap = [(0.0, np.int64(0))]  # one list for every row (typed by its first item)
+    # a binary heap of (distance, column) in two arrays; an edge is pushed at most once per row
+    heap_key = np.empty(len(col) + 1)
+    heap_col = np.empty(len(col) + 1, np.int64)
     for r in range(n_rows):
+        # most rows' nearest column is free: take it, no search (the potentials stay valid)
+        best_e = -1
+        best = np.inf
+        for e in range(row_start[r], row_start[r + 1]):
+            d = weight[e] - v[col[e]]
+            if d < best:
+                best, best_e = d, e
+        if best_e >= 0 and row_of_col[col[best_e]] < 0:
+            j = col[best_e]
+            row_of_col[j] = r
+            col_of_row[r] = j
+            matched_weight[j] = weight[best_e]
+            continue
         n_touched = 0
         n_finished = 0
-        heap.clear()
+        heap_size = 0
         # distances are reduced costs shifted by the unknown row potential of r: a constant
         row, base = r, 0.0
         free_col = -1
@@ -264,10 +277,11 @@ def assign_sparse(row_start, col, weight, n_rows, n_cols):
                     dist[j] = d
                     reached_from[j] = row
                     reached_weight[j] = weight[e]
-                    heapq.heappush(heap, (d, j))
+                    heap_size = _heap_push(heap_key, heap_col, heap_size, d, j)
             found = False
-            while len(heap):
-                d, j = heapq.heappop(heap)
+            while heap_size:
+                d, j = heap_key[0], heap_col[0]
+                heap_size = _heap_pop(heap_key, heap_col, heap_size)
                 if done[j] or d > dist[j]:
                     continue
                 done[j] = True
@@ -303,3 +317,43 @@ def assign_sparse(row_start, col, weight, n_rows, n_cols):
         for s in range(n_finished):
             done[finished[s]] = False
     return col_of_row
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heap_push(keys, values, size, key, value):
+    """Add (key, value) to the binary min-heap of ``size`` items; returns the new size."""
+    i = size
+    while i > 0:
+        parent = (i - 1) >> 1
+        if keys[parent] <= key:
+            break
+        keys[i] = keys[parent]
+        values[i] = values[parent]
+        i = parent
+    keys[i] = key
+    values[i] = value
+    return size + 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heap_pop(keys, values, size):
+    """Remove the smallest item (read it from index 0 first); returns the new size."""
+    size -= 1
+    key = keys[size]
+    value = values[size]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        if child + 1 < size and keys[child + 1] < keys[child]:
+            child += 1
+        if key <= keys[child]:
+            break
+        keys[i] = keys[child]
+        values[i] = values[child]
+        i = child
+    if size > 0:
+        keys[i] = key
+        values[i] = value
+    return size
