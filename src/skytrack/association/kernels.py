@@ -264,13 +264,17 @@ def assign_sparse(row_start, col, weight, n_rows, n_cols):
         row, base = r, 0.0
         free_col = -1
         free_dist = 0.0
+        # the nearest free column seen so far: nothing at or beyond it can be on the shortest path
+        bound = np.inf
         while True:
             for e in range(row_start[row], row_start[row + 1]):
                 j = col[e]
                 if done[j]:
                     continue
                 d = base + weight[e] - v[j]
-                if d < dist[j]:
+                if d < dist[j] and d < bound:
+                    if row_of_col[j] < 0:
+                        bound = d
                     if dist[j] == np.inf:
                         touched[n_touched] = j
                         n_touched += 1
