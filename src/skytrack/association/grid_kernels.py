@@ -9,8 +9,10 @@ bound the scanned area to about ``3 reach x 2 reach``.
 Why spread classes: a plot's search radius is ``scale (s_t + s_p) + margin_t`` (the k-d tree
 reference, :func:`skytrack.association.candidates.candidate_pairs`), so a few very uncertain
 plots (near the radar at an assumed height) would widen every search; a track searches each
-class with that class's largest spread instead.  Classes are powers of 4 of the spread
-(:func:`spread_class`).
+class with that class's largest spread instead.  Classes are powers of 16 of the spread
+(:func:`spread_class`): every class costs each track a look, and finer classes (powers of 4)
+measured slower.  Every column is searched in y by bisection: checking short columns whole
+measured slower, because a column a reach wide holds the plots of the whole coverage in y.
 
 * :func:`grid_index` — the index of a batch of plots (a stable counting sort by class and column
   of the plots in y order);
@@ -26,23 +28,22 @@ from numba import njit
 
 from skytrack.association.kernels import add_if_within
 
-#: spread classes: [0, 64 m), [64, 256 m), ... by factors of 4, the last one open
+#: spread classes: [0, 256 m), [256 m, 4.1 km), ... by factors of 16, the last one open
 SPREAD_BASE_M = 16.0
-SPREAD_CLASSES = 8
+SPREAD_FACTOR = 16.0
+SPREAD_CLASSES = 5
 #: a class never has more columns than this (its column width grows instead)
 MAX_COLUMNS = 4096
-#: column runs with at most this many plots are checked whole, without a binary search
-SMALL_RUN = 8
 
 
 @njit(cache=True, nogil=True, inline="always")
 def spread_class(sigma):
-    """floor(log4(sigma / SPREAD_BASE_M)), clipped to [0, SPREAD_CLASSES - 1] (0 for NaN)."""
+    """floor(log16(sigma / SPREAD_BASE_M)), clipped to [0, SPREAD_CLASSES - 1] (0 for NaN)."""
     c = 0
-    limit = 4.0 * SPREAD_BASE_M
+    limit = SPREAD_FACTOR * SPREAD_BASE_M
     while sigma >= limit and c < SPREAD_CLASSES - 1:
         c += 1
-        limit *= 4.0
+        limit *= SPREAD_FACTOR
     return c
 
 
@@ -159,18 +160,38 @@ def search_grid(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, plot
             first = col_base[c] + _column(xk - reach, x0[c], used_width[c], n_cols)
             last = col_base[c] + _column(xk + reach, x0[c], used_width[c], n_cols)
             for g in range(first, last + 1):
-                lo = start[g]
-                hi = start[g + 1]
-                if hi - lo > SMALL_RUN:
-                    run = ys[lo:hi]
-                    hi = lo + np.searchsorted(run, yk + reach, side="right")
-                    lo = lo + np.searchsorted(run, yk - reach)
+                hi = _first_above(ys, start[g], start[g + 1], yk + reach)
+                lo = _first_not_below(ys, start[g], hi, yk - reach)
                 looked += hi - lo
                 for s in range(lo, hi):
                     j = order[s]
                     radius = scale * (track_sigma[k] + plot_sigma[j]) + track_margin[k]
                     out_t, out_p, count = add_if_within(track_pos, plot_pos, k, j, radius, ndim, out_t, out_p, count)
     return out_t[:count], out_p[:count], looked
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _first_not_below(values, lo, hi, key):
+    """First index in [lo, hi) of sorted ``values`` with ``values[i] >= key`` (hi if none)."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if values[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _first_above(values, lo, hi, key):
+    """First index in [lo, hi) of sorted ``values`` with ``values[i] > key`` (hi if none)."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if values[mid] <= key:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 def grid_candidates(track_positions, track_sigma, track_margin, plot_positions, plot_sigma, scale,

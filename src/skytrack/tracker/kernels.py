@@ -174,15 +174,18 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 pair_pos[m, a] = plot_pos[j, a]
                 for b in range(3):
                     pair_cov[m, a, b] = plot_cov[j, a, b]
-        if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
-            continue  # S not positive definite: the pair cannot be gated
-        total = 0.0
-        for a in range(ndim):
-            acc = pair_pos[m, a] - x_pos[a]
-            for l in range(a):
-                acc -= L[a, l] * w[l]
-            w[a] = acc / L[a, a]
-            total += w[a] * w[a]
+        if ndim == 2:
+            total = _d2_planar(x_pos, P_pos, pair_pos[m], pair_cov[m])
+        else:
+            if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
+                continue  # S not positive definite: the pair cannot be gated
+            total = 0.0
+            for a in range(ndim):
+                acc = pair_pos[m, a] - x_pos[a]
+                for l in range(a):
+                    acc -= L[a, l] * w[l]
+                w[a] = acc / L[a, a]
+                total += w[a] * w[a]
         if total <= gate:
             d2_out[m] = total
             kept_t[m] = k
@@ -214,6 +217,26 @@ def _predict_cv_position(x, P, dt, q, scale, ndim, x_out, P_out):
             mean = 0.5 * (P_out[a, b] + P_out[b, a])
             P_out[a, b] = mean
             P_out[b, a] = mean
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _d2_planar(x_pos, P_pos, z, R):
+    """``d^2`` of a horizontal pair on scalars, with the operations of :func:`_innovation_factor`
+    and the triangular solve (so the same bits); ``inf`` when S is not positive definite."""
+    s00 = P_pos[0, 0] + R[0, 0]
+    s10 = 0.5 * ((P_pos[1, 0] + R[1, 0]) + (P_pos[0, 1] + R[0, 1]))
+    s11 = P_pos[1, 1] + R[1, 1]
+    if s00 <= 0.0:
+        return np.inf
+    l00 = np.sqrt(s00)
+    l10 = s10 / l00
+    rest = s11 - l10 * l10
+    if rest <= 0.0:
+        return np.inf
+    l11 = np.sqrt(rest)
+    w0 = (z[0] - x_pos[0]) / l00
+    w1 = ((z[1] - x_pos[1]) - l10 * w0) / l11
+    return w0 * w0 + w1 * w1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
