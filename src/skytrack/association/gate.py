@@ -20,8 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import gammaln
-from scipy.stats import chi2
+from scipy.special import gammaincinv, gammaln
 
 from skytrack.filters.ekf import mahalanobis
 
@@ -54,7 +53,9 @@ def gate_threshold(m, p_gate: float = DEFAULT_GATE_PROBABILITY):
     an array of the same shape.
     """
     dims = _check_dimension(m)
-    g = chi2.ppf(_check_probability(p_gate), dims)
+    # chi2_m^-1(p) = 2 P^-1(m / 2, p) (P the regularised lower incomplete gamma function): what
+    # scipy.stats.chi2.ppf computes, without importing scipy.stats (0.5 s at start-up)
+    g = 2.0 * gammaincinv(0.5 * dims, _check_probability(p_gate))
     return float(g) if np.ndim(g) == 0 else g
 
 
