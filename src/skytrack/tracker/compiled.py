@@ -75,7 +75,7 @@ class CompiledStages:
         candidates, manoeuvre_hits = stages_cv(
             self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P, columns["t"],
             columns["alt_m"], psi, q_big, plots.time, converted.position, converted.covariance, plots.mode_c_m,
-            plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scale, margin_s, self.scorer.gate(dim),
+            plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scales[s], margin_s, self.scorer.gate(dim),
             replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M,
             sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2,
             self._rotation[s], self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point,
@@ -163,7 +163,7 @@ class CompiledStages:
         rows, plot_rows, candidates = stage_cv(
             tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
             plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-            self.fused_q, dim, self.search_scale, margin_s,
+            self.fused_q, dim, self.search_scales[s], margin_s,
             self.scorer.gate(dim), replace_height,
             float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
             sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],

@@ -106,7 +106,6 @@ class ScanProcessor(CompiledStages):
         self.scorer = build_scorer(assoc.scorer, **options)
         self.assigner = build_assigner(assoc.assigner, compiled=assoc.compiled) if assoc.assigner == "gnn" \
             else build_assigner(assoc.assigner)
-        self.search_scale = RADIUS_FACTOR * math.sqrt(max(self.scorer.gate(m) for m in (dim, dim + 1)))
         self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", 1.0) != 1.0
         geometry = config.geometry
         self.measurements = [
@@ -114,6 +113,11 @@ class ScanProcessor(CompiledStages):
                                    if dim == 3 and geometry.use_range_rate and s.sigma_range_rate_mps is not None else None)
             for s in sensors.sensors
         ]
+        # the search radius bounds the gate of the sensor's own measurement (position, plus range
+        # rate where measured): a larger chi-square quantile would only add candidates
+        self.search_scales = [RADIUS_FACTOR * math.sqrt(self.scorer.gate(dim if model.range_rate_sigma is None
+                                                                         else dim + 1))
+                              for model in self.measurements]
         self.fused_q = fused_cv_q(filter, assoc)
         self.fused = [self.fused_q is not None and model.linear and not sensor.is_moving
                       for model, sensor in zip(self.measurements, sensors.sensors)]
@@ -234,7 +238,7 @@ class ScanProcessor(CompiledStages):
         plot_positions = converted.position[free][:, :dim]
         search = grid_candidates if self.config.association.compiled else candidate_pairs
         ti_local, pj_local = search(reference.x[:, self.pos], sigma_track, speed * margin_s + 1.0, plot_positions,
-                                    sigma_plot, self.search_scale)
+                                    sigma_plot, self.search_scales[s])
         if len(ti_local) == 0:
             return empty, empty
         ti = tracks[ti_local]
