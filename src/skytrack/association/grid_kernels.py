@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.association.kernels import add_if_within
 
 #: spread classes: [0, 256 m), [256 m, 4.1 km), ... by factors of 16, the last one open
 SPREAD_BASE_M = 16.0
@@ -117,6 +116,21 @@ def grid_index(plot_pos, plot_class, width):
 
 
 @njit(cache=True, nogil=True)
+def _in_index_order(order, plot_pos, plot_sigma):
+    """The plots' coordinates (``[3, n]``) and spreads in index order: the search then reads
+    them one after another instead of through ``order``."""
+    n_plots = len(order)
+    coords = np.empty((3, n_plots))
+    sigma = np.empty(n_plots)
+    for s in range(n_plots):
+        j = order[s]
+        for a in range(min(plot_pos.shape[1], 3)):
+            coords[a, s] = plot_pos[j, a]
+        sigma[s] = plot_sigma[j]
+    return coords, sigma
+
+
+@njit(cache=True, nogil=True)
 def search_grid(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, plot_class, scale, ndim):
     """Every pair (track k, plot j) with ``|p_j - t_k| <= scale (s_k + s_j) + margin_k`` (in the
     first ``ndim`` coordinates).  Returns the track
@@ -142,6 +156,7 @@ def search_grid(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, plot
             total += scale * (track_sigma[k] + class_max[c]) + track_margin[k]
         width[c] = total / n_tracks if np.isfinite(total) else 1.0
     order, ys, start, col_base, x0, x1, used_width = grid_index(plot_pos, plot_class, width)
+    coords, sigma = _in_index_order(order, plot_pos, plot_sigma)
     capacity = 2 * (n_tracks + n_plots) + 16
     out_t = np.empty(capacity, np.int64)
     out_p = np.empty(capacity, np.int64)
@@ -159,15 +174,35 @@ def search_grid(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, plot
             n_cols = col_base[c + 1] - col_base[c]
             first = col_base[c] + _column(xk - reach, x0[c], used_width[c], n_cols)
             last = col_base[c] + _column(xk + reach, x0[c], used_width[c], n_cols)
+            y_low, y_high = yk - reach, yk + reach
             for g in range(first, last + 1):
-                hi = _first_above(ys, start[g], start[g + 1], yk + reach)
-                lo = _first_not_below(ys, start[g], hi, yk - reach)
+                end = start[g + 1]
+                if end == start[g] or ys[start[g]] > y_high or ys[end - 1] < y_low:
+                    continue  # the column holds nothing in the y-interval
+                hi = _first_above(ys, start[g], end, y_high)
+                lo = _first_not_below(ys, start[g], hi, y_low)
                 looked += hi - lo
                 for s in range(lo, hi):
-                    j = order[s]
-                    radius = scale * (track_sigma[k] + plot_sigma[j]) + track_margin[k]
-                    out_t, out_p, count = add_if_within(track_pos, plot_pos, k, j, radius, ndim, out_t, out_p, count)
+                    radius = scale * (track_sigma[k] + sigma[s]) + track_margin[k]
+                    d2 = 0.0
+                    for a in range(ndim):
+                        diff = coords[a, s] - track_pos[k, a]
+                        d2 += diff * diff
+                    if d2 <= radius * radius:
+                        if count == len(out_t):
+                            out_t = _grow(out_t, 2 * count + 16)
+                            out_p = _grow(out_p, 2 * count + 16)
+                        out_t[count] = k
+                        out_p[count] = order[s]
+                        count += 1
     return out_t[:count], out_p[:count], looked
+
+
+@njit(cache=True, nogil=True)
+def _grow(values, capacity):
+    out = np.empty(capacity, values.dtype)
+    out[: len(values)] = values
+    return out
 
 
 @njit(cache=True, nogil=True, inline="always")

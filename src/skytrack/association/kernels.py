@@ -1,7 +1,5 @@
 """Compiled (numba, cached) association kernels, with numpy/scipy references elsewhere.
 
-* :func:`add_if_within` — the radius check of a candidate search
-  (:mod:`skytrack.association.grid_kernels` holds the search itself);
 * :func:`assign_clusters` — global nearest neighbour: union-find over the gated pairs gives
   the clusters; a lone pair is taken when it costs no more than leaving its track
   unassigned; clusters up to ``max_dense`` tracks plus plots are solved exactly by a
@@ -15,31 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-
-
-@njit(cache=True, nogil=True, inline="always")
-def add_if_within(track_pos, plot_pos, t, j, radius, dim, out_t, out_p, count):
-    """Append the pair (t, j) to ``out_t``/``out_p`` (grown when full) if the plot lies within
-    ``radius`` of the track; returns the arrays and the new count."""
-    d2 = 0.0
-    for c in range(dim):
-        diff = plot_pos[j, c] - track_pos[t, c]
-        d2 += diff * diff
-    if d2 <= radius * radius:
-        if count == len(out_t):
-            out_t = _grow(out_t, 2 * count + 16)
-            out_p = _grow(out_p, 2 * count + 16)
-        out_t[count] = t
-        out_p[count] = j
-        count += 1
-    return out_t, out_p, count
-
-
-@njit(cache=True, nogil=True)
-def _grow(values, capacity):
-    out = np.empty(capacity, values.dtype)
-    out[: len(values)] = values
-    return out
 
 
 @njit(cache=True, nogil=True)
