@@ -165,7 +165,8 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     for c in range(count):
         k = out_t[c]
         j = out_p[c]
-        _predict_cv_position(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pos, P_pos)
+        if ndim != 2:
+            _predict_cv_position(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pos, P_pos)
         if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
             place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
                      pair_pos[m], pair_cov[m])
@@ -175,7 +176,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 for b in range(3):
                     pair_cov[m, a, b] = plot_cov[j, a, b]
         if ndim == 2:
-            total = _d2_planar(x_pos, P_pos, pair_pos[m], pair_cov[m])
+            total = _d2_planar(x[k], P[k], plot_time[j] - t[k], q, scale[k], pair_pos[m], pair_cov[m])
         else:
             if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
                 continue  # S not positive definite: the pair cannot be gated
@@ -220,12 +221,23 @@ def _predict_cv_position(x, P, dt, q, scale, ndim, x_out, P_out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _d2_planar(x_pos, P_pos, z, R):
-    """``d^2`` of a horizontal pair on scalars, with the operations of :func:`_innovation_factor`
-    and the triangular solve (so the same bits); ``inf`` when S is not positive definite."""
-    s00 = P_pos[0, 0] + R[0, 0]
-    s10 = 0.5 * ((P_pos[1, 0] + R[1, 0]) + (P_pos[0, 1] + R[0, 1]))
-    s11 = P_pos[1, 1] + R[1, 1]
+def _d2_planar(x, P, dt, q, scale, z, R):
+    """``d^2`` of a horizontal pair on scalars: :func:`_predict_cv_position`,
+    :func:`_innovation_factor` and the triangular solve with the same operations (so the same
+    bits); ``inf`` when S is not positive definite."""
+    step = abs(dt)
+    f = dt
+    q00 = q * step * step * step / 3.0 * scale
+    x0 = x[0] + f * x[1]
+    x1 = x[2] + f * x[3]
+    p00 = (P[0, 0] + f * P[1, 0]) + (P[0, 1] + f * P[1, 1]) * f + q00
+    p01 = (P[0, 2] + f * P[1, 2]) + (P[0, 3] + f * P[1, 3]) * f
+    p10 = (P[2, 0] + f * P[3, 0]) + (P[2, 1] + f * P[3, 1]) * f
+    p11 = (P[2, 2] + f * P[3, 2]) + (P[2, 3] + f * P[3, 3]) * f + q00
+    p_mean = 0.5 * (p01 + p10)
+    s00 = p00 + R[0, 0]
+    s10 = 0.5 * ((p_mean + R[1, 0]) + (p_mean + R[0, 1]))
+    s11 = p11 + R[1, 1]
     if s00 <= 0.0:
         return np.inf
     l00 = np.sqrt(s00)
@@ -234,8 +246,8 @@ def _d2_planar(x_pos, P_pos, z, R):
     if rest <= 0.0:
         return np.inf
     l11 = np.sqrt(rest)
-    w0 = (z[0] - x_pos[0]) / l00
-    w1 = ((z[1] - x_pos[1]) - l10 * w0) / l11
+    w0 = (z[0] - x0) / l00
+    w1 = ((z[1] - x1) - l10 * w0) / l11
     return w0 * w0 + w1 * w1
 
 
