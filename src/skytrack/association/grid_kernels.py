@@ -133,8 +133,8 @@ def _in_index_order(order, plot_pos, plot_sigma):
 @njit(cache=True, nogil=True)
 def search_grid(track_pos, track_sigma, track_margin, plot_pos, plot_sigma, plot_class, scale, ndim):
     """Every pair (track k, plot j) with ``|p_j - t_k| <= scale (s_k + s_j) + margin_k`` (in the
-    first ``ndim`` coordinates).  Returns the track
-    and plot indices of the pairs (track by track) and the number of plots looked at."""
+    first ``ndim`` coordinates).  Returns the track and plot indices of the pairs (track by
+    track) and the number of plots looked at."""
     n_tracks = track_pos.shape[0]
     n_plots = plot_pos.shape[0]
     n_classes = SPREAD_CLASSES
