@@ -26,7 +26,7 @@ FORMATS_EXAMPLE = {
             "p_detection": 0.9, "clutter_per_scan": 20.0,
         },
         {
-            "name": "radar2", "type": "radar-3d", "x": 30000.0, "y": 1000.0,
+            "name": "radar2", "type": "radar-3d", "x": 30000.0, "y": 1000.0, "scan_period_s": 6.0,
             "sigma_range_m": 50.0, "sigma_azimuth_deg": 0.1, "sigma_elevation_deg": 0.2,
         },
         {"name": "adsb", "type": "adsb"},
@@ -66,6 +66,7 @@ def test_round_trip_keeps_everything(tmp_path, sensor_set):
 def test_top_level_defaults_and_per_sensor_override(tmp_path):
     data = copy.deepcopy(FORMATS_EXAMPLE)
     data.update({"scan_period_s": 5.0, "p_detection": 0.8, "clutter_per_scan": 3.0, "site": "CDG"})
+    del data["sensors"][1]["scan_period_s"]
     data["sensors"][1]["p_detection"] = 0.95
     data["sensors"][1]["clutter_per_scan"] = None  # null = not given: the default applies
     sensors = read_sensors(_write(tmp_path, data))
@@ -104,8 +105,10 @@ S1 = "sensors[1] ('radar2')"
 
 # (where to change, new value, expected message after "sensors.json: ")
 CASES = [
-    (["format_version"], "2", 'format_version must be "1", got "2"'),
-    (["format_version"], 1, 'format_version must be "1", got 1'),
+    (["format_version"], "2", 'format_version must be version 1 ("1", 1, "1.0" or "1.x"), got "2"'),
+    (["format_version"], 2, 'format_version must be version 1 ("1", 1, "1.0" or "1.x"), got 2'),
+    (["format_version"], True, 'format_version must be version 1 ("1", 1, "1.0" or "1.x"), got True'),
+    (["format_version"], "1.", 'format_version must be version 1 ("1", 1, "1.0" or "1.x"), got "1."'),
     (["format_version"], KeyError, 'format_version is missing (expected "1")'),
     (["epoch_utc"], "noon", "epoch_utc 'noon' is not a timestamp"),
     (["origin"], KeyError, "origin is missing (it gives the lat/lon/alt_m of the ENU frame)"),
@@ -136,6 +139,15 @@ CASES = [
     (["sensors", 0, "sigma_azimuth_deg"], None, f"{S0}: sigma_azimuth_deg is required for a radar-2d sensor"),
     (["sensors", 1, "sigma_elevation_deg"], KeyError, f"{S1}: sigma_elevation_deg is required for a radar-3d sensor"),
     (["sensors", 1, "x"], KeyError, f"{S1}: position unknown: give lat and lon, or x and y"),
+    (
+        ["sensors", 0, "scan_period_s"],
+        KeyError,
+        f"{S0}: scan_period_s is required for a radar-2d sensor (the antenna's revolution period, per sensor or "
+        "at the top level)",
+    ),
+    (["sensors", 1, "scan_period_s"], None, f"{S1}: scan_period_s is required for a radar-3d sensor (the antenna's "
+                                            "revolution period, per sensor or at the top level)"),
+    (["sensors", 0, "max_range_m"], 10**400, f"{S0}: max_range_m is out of range (an integer of about 401 digits)"),
 ]
 
 
@@ -184,3 +196,44 @@ def test_write_refuses_invalid_sets(tmp_path, sensor_set):
         write_sensors(sensor_set, tmp_path / "s.json")
     assert "p_detection must be in [0, 1], got 2" in str(info.value)
     assert not (tmp_path / "s.json").exists()
+
+
+@pytest.mark.parametrize("version", ["1", 1, 1.0, "1.0", "1.3", " 1 "])
+def test_every_spelling_of_version_one_reads(tmp_path, version):
+    """Other tools write the version as a number or as "1.0": all are version 1, written back as "1"."""
+    data = copy.deepcopy(FORMATS_EXAMPLE)
+    data["format_version"] = version
+    sensors = read_sensors(_write(tmp_path, data))
+    assert sensors.format_version == "1"
+    assert sensors.to_dict()["format_version"] == "1"
+
+
+def test_scan_period_given_at_the_top_level_is_enough(tmp_path):
+    data = copy.deepcopy(FORMATS_EXAMPLE)
+    del data["sensors"][0]["scan_period_s"], data["sensors"][1]["scan_period_s"]
+    data["scan_period_s"] = 5.0
+    sensors = read_sensors(_write(tmp_path, data))
+    assert sensors["radar1"].scan_period_s == sensors["radar2"].scan_period_s == 5.0
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"format_version": "1", "origin": {"lat": NaN, "lon": 2.5}, "sensors": []}',
+     "not valid sensors JSON (NaN is not a number that sensors.json may hold)"),
+    ('{"format_version": "1", "origin": {"lat": 1, "lon": -Infinity}, "sensors": []}',
+     "not valid sensors JSON (-Infinity is not a number that sensors.json may hold)"),
+    ("[" * 100_000 + "]" * 100_000, "not valid sensors JSON (nested too deeply)"),
+])
+def test_json_that_python_would_accept_or_crash_on_is_one_line_error(tmp_path, text, message):
+    path = tmp_path / "sensors.json"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        read_sensors(path)
+    assert str(info.value) == f"{path}: {message}"
+
+
+def test_integer_literal_beyond_pythons_digit_limit_is_one_line_error(tmp_path):
+    path = tmp_path / "sensors.json"
+    path.write_text('{"format_version": "1", "origin": {"lat": 1, "lon": 2, "alt_m": ' + "9" * 5000 + '}, "sensors": []}')
+    with pytest.raises(InputError) as info:
+        read_sensors(path)
+    assert str(info.value).startswith(f"{path}: not valid sensors JSON (Exceeds the limit (4300 digits)")

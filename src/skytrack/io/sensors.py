@@ -1,11 +1,13 @@
 """``sensors.json`` (FORMATS.md): reader and writer of :class:`skytrack.geo.SensorSet`.
 
-Validation: ``format_version`` is ``"1"``; ``epoch_utc``, when given, is a timestamp;
+Validation: ``format_version`` is version 1 (written ``"1"``, ``1``, ``"1.0"`` or any
+``1.x``, as other tools write it); ``epoch_utc``, when given, is a timestamp;
 ``origin`` has ``lat`` in [-90, 90], ``lon`` in [-180, 180] and a finite ``alt_m``; each
 sensor has a unique non-empty ``name`` and a ``type`` in ``SENSOR_TYPES``; numbers are
 numbers (not text, not booleans) and finite; ``sigma_*`` > 0, ``scan_period_s`` > 0,
 ``max_range_m`` > 0, ``0 <= p_detection <= 1``, ``clutter_per_scan >= 0``; radars have
-``sigma_range_m`` and ``sigma_azimuth_deg``, a ``radar-3d`` also ``sigma_elevation_deg``;
+``sigma_range_m`` and ``sigma_azimuth_deg``, a ``radar-3d`` also ``sigma_elevation_deg``,
+ground radars (they rotate) ``scan_period_s``;
 a sensor's position is known (lat/lon or x/y, except airborne radars and ADS-B) and,
 when both are given, consistent.
 
@@ -69,10 +71,29 @@ def _show(value: Any) -> str:
     return json.dumps(value) if isinstance(value, str) else repr(value)
 
 
+def is_version_one(version: Any) -> bool:
+    """Whether a ``format_version`` value means version 1: ``"1"``, ``1``, ``1.0``, ``"1.0"``
+    or ``"1.x"`` with x digits (not a boolean)."""
+    if isinstance(version, bool):
+        return False
+    if isinstance(version, int):
+        return version == 1
+    if isinstance(version, float):
+        return 1.0 <= version < 2.0
+    if isinstance(version, str):
+        major, dot, minor = version.strip().partition(".")
+        return major == "1" and (not dot or minor.isdigit())
+    return False
+
+
 def _number(value: Any, key: str, where: _Where) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise where.error(f"{key} must be a number, got {_show(value)}", key)
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:
+        digits = int(value.bit_length() * math.log10(2)) + 1
+        raise where.error(f"{key} is out of range (an integer of about {digits} digits)", key) from None
     if not math.isfinite(number):
         raise where.error(f"{key} must be finite, got {_show(value)}", key)
     rule = _RULES.get(key)
@@ -126,6 +147,9 @@ def _sensor(raw: Any, index: int, defaults: dict[str, Any], file: str) -> Sensor
     for key in needed:
         if values.get(key) is None:
             raise where.error(f"{key} is required for a {sensor_type} sensor", key)
+    if sensor_type in ("radar-2d", "radar-3d") and values.get("scan_period_s") is None:
+        raise where.error(f"scan_period_s is required for a {sensor_type} sensor (the antenna's revolution "
+                          "period, per sensor or at the top level)", "scan_period_s")
     has_geodetic = values.get("lat") is not None and values.get("lon") is not None
     has_enu = values.get("x") is not None and values.get("y") is not None
     if not (has_geodetic or has_enu or sensor_type in ("radar-airborne", "adsb")):
@@ -142,8 +166,10 @@ def sensor_set_from_dict(data: Any, file: str = "sensors.json") -> SensorSet:
     version = data.get("format_version")
     if version is None:
         raise top.error(f'format_version is missing (expected "{FORMAT_VERSION}")', "format_version")
-    if version != FORMAT_VERSION:
-        raise top.error(f'format_version must be "{FORMAT_VERSION}", got {_show(version)}', "format_version")
+    if not is_version_one(version):
+        raise top.error(f'format_version must be version 1 ("1", 1, "1.0" or "1.x"), got {_show(version)}',
+                        "format_version")
+    version = FORMAT_VERSION
     epoch = data.get("epoch_utc")
     if epoch is not None:
         if not isinstance(epoch, str):
@@ -184,10 +210,18 @@ def read_sensors(path: str | Path) -> SensorSet:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read ({exc})", file=file) from None
     try:
-        data = json.loads(text)
+        data = json.loads(text, parse_constant=_refuse_constant)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON ({exc.msg} at character {exc.colno})", file=file, line=exc.lineno) from None
+    except RecursionError:
+        raise InputError("not valid sensors JSON (nested too deeply)", file=file) from None
+    except ValueError as exc:  # NaN/Infinity, or an integer literal beyond Python's digit limit
+        raise InputError(f"not valid sensors JSON ({exc})", file=file) from None
     return sensor_set_from_dict(data, file)
+
+
+def _refuse_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number that sensors.json may hold")
 
 
 def _json_default(value: Any) -> Any:
