@@ -167,3 +167,19 @@ def test_demo_meets_the_acceptance_checks(tmp_path):
     for name in ("plots.parquet", "truth.parquet", "sensors.json", "tracks.parquet", "ppi.png", "metrics_over_time.png"):
         assert (tmp_path / name).stat().st_size > 500
     assert metrics["continuity_mean"] > 0.9 and metrics["n_false_tracks"] <= 2
+
+
+@pytest.mark.parametrize("scenario", ["crossing", "radar3d"])
+def test_demo_of_other_scenarios_reports_honestly(tmp_path, scenario):
+    """Other bundled scenarios: metrics.json is strict JSON (an undefined figure is null, the
+    crossing scenario has no primary-only aircraft), and the exit status is 0 exactly when every
+    check passed (a FAIL exited 0 before)."""
+    result = invoke("demo", "--scenario", scenario, "--out", tmp_path)
+    text = (tmp_path / "metrics.json").read_text()
+    metrics = json.loads(text, parse_constant=lambda name: pytest.fail(f"{name} in metrics.json"))
+    checks = metrics["demo"]["checks"]
+    passed = checks["every_aircraft_in_coverage_2min_tracked"] and checks["position_rmse_below_cross_range_sigma"]
+    assert result.exit_code == (0 if passed else 1), result.output
+    assert ("FAIL" in result.output) == (not passed)
+    if checks["position_rmse_primary_only_aircraft_m"] is None:
+        assert "n/a" in result.output

@@ -77,7 +77,12 @@ def acceptance_checks(evaluation, result) -> dict:
     import numpy as np
 
     radar = next(s for s in result.sensors.sensors if s.is_radar)
-    cross_range = radar.max_range_m / 2.0 * math.radians(radar.sigma_azimuth_deg)
+    # one plot's error across the line of sight at mid range, in the dimensions tracked: azimuth,
+    # and elevation too when a 3-D radar's tracks are compared in 3-D
+    angle_sigma_deg = radar.sigma_azimuth_deg
+    if radar.is_3d and evaluation.dimension == "3-D" and radar.sigma_elevation_deg:
+        angle_sigma_deg = math.hypot(radar.sigma_azimuth_deg, radar.sigma_elevation_deg)
+    cross_range = radar.max_range_m / 2.0 * math.radians(angle_sigma_deg)
     rmse = evaluation.summary["position_rmse_m"]
     coverage = evaluation.coverage
     tracked = bool(coverage["tracked"].all()) if len(coverage) else True
@@ -91,11 +96,17 @@ def acceptance_checks(evaluation, result) -> dict:
         "aircraft_in_coverage_2min_tracked": int(coverage["tracked"].sum()) if len(coverage) else 0,
         "every_aircraft_in_coverage_2min_tracked": tracked,
         "cross_range_sigma_mid_range_m": cross_range,
-        "position_rmse_m": rmse,
-        "position_rmse_mode_c_aircraft_m": rmse_mode_c,
-        "position_rmse_primary_only_aircraft_m": rmse_primary,
+        "position_rmse_m": _number_or_none(rmse),
+        # null when the scenario has no aircraft of that kind (all with Mode C, or none)
+        "position_rmse_mode_c_aircraft_m": _number_or_none(rmse_mode_c),
+        "position_rmse_primary_only_aircraft_m": _number_or_none(rmse_primary),
         "position_rmse_below_cross_range_sigma": bool(rmse < cross_range),
     }
+
+
+def _number_or_none(value: float) -> float | None:
+    """JSON has no NaN: an undefined figure is written as null."""
+    return None if value is None or math.isnan(value) else float(value)
 
 
 def _targets_with_mode_c(result) -> set:
