@@ -80,7 +80,8 @@ def test_lenient_run_reports_skipped_rows(crossing, tmp_path):
     assert summary.report is not None and summary.report.rows_skipped == 2
     assert summary.plots == len(plots) - 2
     data = summary.to_dict()
-    assert set(data) == {"plots", "tracks_file", "track_rows", "elapsed_s", "stats", "warnings", "report", "tracking_dim"}
+    assert set(data) == {"plots", "tracks_file", "track_rows", "elapsed_s", "stats", "warnings", "report", "tracking_dim",
+                         "no_tracks_reason"}
     assert "2 skipped" in data["report"]
 
 
@@ -88,3 +89,44 @@ def test_bad_chunk_rows_is_refused(crossing, tmp_path):
     _, paths, _ = crossing
     with pytest.raises(ValueError, match="chunk_rows"):
         run_tracking(paths["plots"], paths["sensors"], tmp_path / "t.parquet", chunk_rows=0)
+
+
+def test_a_run_without_tracks_says_why(crossing, tmp_path):
+    """Too few scans to confirm, and no plot at all: the summary names the reason; a run with
+    tracks has none."""
+    from skytrack.io import write_plots
+
+    result, paths, _ = crossing
+    plots = result.plots
+    first_two_scans = plots[plots["time"] < plots["time"].min() + 2 * result.sensors.sensors[0].scan_period_s]
+    write_plots(first_two_scans, tmp_path / "short.parquet", sensors=result.sensors)
+    summary = run_tracking(tmp_path / "short.parquet", paths["sensors"], tmp_path / "short_tracks.parquet")
+    assert summary.track_rows == 0 and summary.stats["tracks_started"] > 0
+    assert summary.no_tracks_reason == (
+        f"{summary.stats['tracks_started']} tentative tracks started but none was confirmed by the 3-of-4 rule: a "
+        "track needs plots on 3 of 4 consecutive scans (check the radars' scan_period_s against the plots' times, "
+        "and the plots' units)")
+    write_plots(plots.iloc[:0], tmp_path / "empty.parquet", sensors=result.sensors)
+    empty = run_tracking(tmp_path / "empty.parquet", paths["sensors"], tmp_path / "empty_tracks.parquet")
+    assert empty.no_tracks_reason == "no plot was read"
+    full = run_tracking(paths["plots"], paths["sensors"], tmp_path / "tracks.parquet")
+    assert full.track_rows > 0 and full.no_tracks_reason is None
+    assert full.to_dict()["no_tracks_reason"] is None
+
+
+def test_an_output_that_is_an_input_is_refused(crossing, tmp_path):
+    """`-o` naming the plots or sensors file (even by another path) would destroy the input."""
+    from skytrack.app.evaluate import run_evaluation
+    from skytrack.io import InputError
+
+    _, paths, _ = crossing
+    for victim, option in ((paths["plots"], "plots"), (paths["sensors"], "sensors")):
+        before = victim.read_bytes()
+        roundabout = victim.parent / "." / victim.name
+        with pytest.raises(InputError) as info:
+            run_tracking(paths["plots"], paths["sensors"], roundabout)
+        assert str(info.value) == (f"{roundabout}: the output file is the {option} input: writing it would "
+                                   "overwrite the data being read")
+        assert victim.read_bytes() == before
+    with pytest.raises(InputError, match="the output file is the truth input"):
+        run_evaluation(paths["plots"], paths["truth"], json_out=paths["truth"])

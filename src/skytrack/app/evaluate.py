@@ -37,14 +37,15 @@ def run_evaluation(
     latter), evaluate (GOSPA/OSPA, RMSE, NEES, continuity, breaks, swaps, false tracks) and
     write the metrics to ``json_out`` (default: :func:`default_metrics_path`)."""
     from skytrack.analysis import evaluate
-    from skytrack.io import read_sensors, read_tracks, read_truth
+    from skytrack.io import read_sensors, read_tracks, read_truth, refuse_overwriting
 
+    json_path = Path(json_out) if json_out is not None else default_metrics_path(tracks_path)
+    refuse_overwriting(json_path, tracks=tracks_path, truth=truth_path, sensors=sensors_path)
     sensor_set = read_sensors(sensors_path) if sensors_path else None
     evaluation = evaluate(
         read_tracks(tracks_path), read_truth(truth_path, sensors=sensor_set), cutoff_m=cutoff_m, order=order,
         association_gate_m=association_gate_m, start_time_s=start_time_s,
     )
-    json_path = Path(json_out) if json_out is not None else default_metrics_path(tracks_path)
     json_path.parent.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(evaluation.to_dict(), indent=2, allow_nan=False) + "\n")
     return EvaluationRun(evaluation=evaluation, json_path=json_path)

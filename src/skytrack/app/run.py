@@ -44,6 +44,8 @@ class RunSummary:
     """2 (horizontal) or 3"""
     tracks_file: str = ""
     """where the tracks were written"""
+    no_tracks_reason: str | None = None
+    """why no track row was written (``None`` when some were)"""
 
     @property
     def plots_per_s(self) -> float:
@@ -55,6 +57,7 @@ class RunSummary:
             "plots": self.plots, "tracks_file": self.tracks_file, "track_rows": self.track_rows,
             "elapsed_s": self.elapsed_s, "stats": dict(self.stats), "warnings": list(self.warnings),
             "report": None if self.report is None else str(self.report), "tracking_dim": self.tracking_dim,
+            "no_tracks_reason": self.no_tracks_reason,
         }
 
 
@@ -76,7 +79,7 @@ def run_tracking(
     ``lenient=True`` malformed plot rows are skipped and counted in ``summary.report``.
     ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.
     """
-    from skytrack.io import ReadReport, iter_plot_batches, read_sensors
+    from skytrack.io import ReadReport, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.tables import count_rows
     from skytrack.io.tracks import TrackWriter
     from skytrack.tracker import Tracker, TrackerConfig
@@ -84,6 +87,7 @@ def run_tracking(
     if chunk_rows < 1:
         raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
     plots_path, out = Path(plots_path), Path(out)
+    refuse_overwriting(out, plots=plots_path, sensors=sensors_path)
     config = config if config is not None else TrackerConfig()
     report_progress = progress or (lambda stage, completed, total: None)
     sensor_set = read_sensors(sensors_path)
@@ -103,7 +107,28 @@ def run_tracking(
         writer.write(tracker.drain_arrow(), checked=True)
     report_progress("track", plots_read, total if total is not None else plots_read)
     elapsed = time.perf_counter() - started
-    return RunSummary(
+    summary = RunSummary(
         plots=plots_read, track_rows=writer.rows, elapsed_s=elapsed, stats=dict(tracker.stats),
         warnings=list(tracker.warnings), report=report, tracking_dim=tracker.dim, tracks_file=str(out),
     )
+    if summary.track_rows == 0:
+        summary.no_tracks_reason = no_tracks_reason(summary, config)
+    return summary
+
+
+def no_tracks_reason(summary: RunSummary, config: TrackerConfig) -> str:
+    """One sentence on why a run wrote no track, from what the tracker counted."""
+    stats = summary.stats
+    lifecycle = config.lifecycle
+    if summary.plots == 0:
+        skipped = "" if summary.report is None or summary.report.ok else f" ({summary.report})"
+        return f"no plot was read{skipped}"
+    started, confirmed = stats.get("tracks_started", 0), stats.get("tracks_confirmed", 0)
+    if started == 0:
+        return f"none of the {summary.plots} plots started a track"
+    if confirmed == 0:
+        return (f"{started} tentative tracks started but none was confirmed by the {lifecycle.confirm_m}-of-"
+                f"{lifecycle.confirm_n} rule: a track needs plots on {lifecycle.confirm_m} of {lifecycle.confirm_n} "
+                "consecutive scans (check the radars' scan_period_s against the plots' times, and the plots' "
+                "units)")
+    return f"{confirmed} tracks were confirmed but no output instant fell within their lives"

@@ -227,6 +227,8 @@ def _print_tracking_summary(summary) -> None:
     table.add_row("track rows written", f"{summary.track_rows} -> {summary.tracks_file}")
     table.add_row("time", f"{summary.elapsed_s:.2f} s ({summary.plots_per_s:,.0f} plots/s, reading and writing included)")
     console.print(table)
+    if summary.no_tracks_reason:
+        error_console.print(f"[yellow]no track written:[/] {summary.no_tracks_reason}", highlight=False)
 
 
 # ---------------------------------------------------------------------------- evaluate

@@ -11,7 +11,7 @@ columns in FORMATS.md order followed by the extras, and create parent directorie
 """
 
 from skytrack.io.adsb import read_adsb, write_adsb
-from skytrack.io.errors import InputError, InputWarning, ReadReport, SkippedRows
+from skytrack.io.errors import InputError, InputWarning, ReadReport, SkippedRows, refuse_overwriting
 from skytrack.io.plots import iter_plot_batches, iter_plots, read_plots, write_plots
 from skytrack.io.schema import (
     ADSB_COLUMNS,
@@ -55,6 +55,7 @@ __all__ = [
     "table_format",
     "InputError",
     "InputWarning",
+    "refuse_overwriting",
     "ReadReport",
     "SkippedRows",
     "Column",

@@ -11,6 +11,7 @@ silently.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 #: how many example locations a report keeps per reason
 MAX_EXAMPLES = 3
@@ -143,3 +144,13 @@ class ReadReport:
             lines.append(f"  {entry.count} × {entry.reason}" + (f" (e.g. {examples})" if examples else ""))
         lines.extend(f"  warning: {w}" for w in self.warnings)
         return "\n".join(lines)
+
+
+def refuse_overwriting(out: str | Path, **inputs: str | Path | None) -> None:
+    """An :class:`InputError` when the output file ``out`` is one of the ``inputs`` (named by
+    their option, e.g. ``plots=...``): writing it would destroy the data being read."""
+    target = Path(out).resolve()
+    for option, path in inputs.items():
+        if path is not None and Path(path).resolve() == target:
+            raise InputError(f"the output file is the {option} input: writing it would overwrite the data being read",
+                             file=str(out))
