@@ -70,6 +70,7 @@ def run_tracking(
     lenient: bool = False,
     chunk_rows: int = DEFAULT_CHUNK_ROWS,
     progress: ProgressCallback | None = None,
+    units_confirmed: bool = False,
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
@@ -77,7 +78,8 @@ def run_tracking(
     (Parquet and CSV are both streamed), fed to the tracker, and the tracks it emits are appended to ``out`` after
     every chunk, so memory is bounded by one chunk plus the live tracks.  With
     ``lenient=True`` malformed plot rows are skipped and counted in ``summary.report``.
-    ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.
+    ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.  Values that
+    look like kilometres or radians stop the run unless ``units_confirmed``.
     """
     from skytrack.io import ReadReport, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.tables import count_rows
@@ -98,7 +100,8 @@ def run_tracking(
     plots_read = 0
     report_progress("track", 0, total)
     with TrackWriter(out) as writer:
-        for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report):
+        for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report,
+                                       units_confirmed=units_confirmed):
             tracker.feed(chunk, source=str(plots_path))
             writer.write(tracker.drain_arrow(), checked=True)
             plots_read += len(chunk)

@@ -167,6 +167,7 @@ def track(
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
     chunk_rows: Annotated[int, typer.Option(help="Plots read, validated and tracked per chunk (bounds memory, Parquet and CSV alike).")] = defaults.CHUNK_ROWS,
     filter_kind: Annotated[Optional[str], typer.Option("--filter", help="Filter family: kalman-psi (default: Kalman with the manoeuvre switch), kalman, imm.")] = None,
+    units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
@@ -196,7 +197,8 @@ def track(
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:
-        summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress)
+        summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress,
+                               units_confirmed=units_confirmed)
     _print_tracking_summary(summary)
 
 

@@ -39,7 +39,7 @@ from skytrack.io.checks import (
     require_columns,
     time_column,
 )
-from skytrack.io.errors import ReadReport
+from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.plot_arrays import PlotStream, plot_batch_from_arrow
 from skytrack.io.schema import PLOT_SCHEMA, TEXT_COLUMNS
 from skytrack.io.tables import (
@@ -164,6 +164,9 @@ def _flag_behind_earlier_chunks(
 
 #: a table needs this many rows before its value ranges say anything about units
 _UNIT_CHECK_MIN_ROWS = 50
+#: a tracking run stops on suspicious units only after this many plots: a radar's first
+#: plots may all be clutter near the antenna
+_UNIT_STOP_MIN_ROWS = 1000
 
 
 def _warn_implausible_units(range_m: np.ndarray, azimuth: np.ndarray, report: ReadReport) -> None:
@@ -174,14 +177,22 @@ def _warn_implausible_units(range_m: np.ndarray, azimuth: np.ndarray, report: Re
 
 
 def _warn_units(seen: PlotStream, report: ReadReport) -> None:
+    for problem in _unit_problems(seen):
+        report.warn(problem)
+
+
+def _unit_problems(seen: PlotStream) -> list[str]:
+    """What the value ranges seen so far say about units (nothing before enough rows)."""
     if seen.rows < _UNIT_CHECK_MIN_ROWS:
-        return
+        return []
+    problems = []
     if 0 < seen.largest_range < 1000.0:
-        report.warn(f"range_m never exceeds {seen.largest_range:g}: are the ranges in kilometres instead of metres?")
+        problems.append(f"range_m never exceeds {seen.largest_range:g}: are the ranges in kilometres instead of "
+                        "metres?")
     if 0 < seen.largest_azimuth <= 2 * np.pi:
-        report.warn(
-            f"azimuth_deg never exceeds {seen.largest_azimuth:g}: are the azimuths in radians instead of degrees?"
-        )
+        problems.append(f"azimuth_deg never exceeds {seen.largest_azimuth:g}: are the azimuths in radians instead "
+                        "of degrees?")
+    return problems
 
 
 @overload
@@ -227,10 +238,14 @@ def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch
 
 
 def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None,
-                      report=None):
+                      report=None, units_confirmed=False):
     """:func:`iter_plots` as :class:`~skytrack.core.plots.PlotBatch` chunks: parsed once, in SI
     units with integer identity codes, ready for the tracker (which does not check them again).
     Row numbers count the plots kept (what the tracker's messages refer to).
+
+    Values that look like another unit (ranges all below 1 km, azimuths all within 2 pi over
+    the first 1 000 plots or more) stop the reading with an :class:`InputError`, unless
+    ``units_confirmed``: tracked as they are, they gave garbage tracks or none.
 
     A chunk whose every row is good goes from Arrow arrays to the batch directly
     (:mod:`skytrack.io.plot_arrays`); any other chunk is validated as by :func:`iter_plots`.
@@ -238,7 +253,8 @@ def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_0
     names = sensors.names
     is_3d = [s.is_3d for s in sensors.sensors]
     first_row = 0
-    for chunk in _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, as_batches=True):
+    for chunk in _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, as_batches=True,
+                                 stop_on_units=not units_confirmed):
         if isinstance(chunk, PlotBatch):
             chunk.row += first_row
         else:
@@ -247,10 +263,12 @@ def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_0
         first_row += len(chunk)
 
 
-def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as_batches: bool):
+def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as_batches: bool,
+                    stop_on_units: bool = False):
     """The validated chunks of a plots file: DataFrames, or with ``as_batches`` a
     :class:`PlotBatch` for every chunk the fast path takes (rows numbered from 0) and a
-    DataFrame for the others."""
+    DataFrame for the others.  ``stop_on_units`` raises on values that look like another unit
+    (:func:`_unit_problems`) before the chunk that shows it is handed out."""
     if chunk_rows < 1:
         raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
     report = report if report is not None else ReadReport(file=str(path))
@@ -270,6 +288,10 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
         if plots is None:
             frame = chunk_to_frame(table, source)
             plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report, stream)
+        if stop_on_units and stream.rows >= _UNIT_STOP_MIN_ROWS and _unit_problems(stream):
+            hint = "; ".join(_unit_problems(stream))
+            raise InputError(f"{hint} (FORMATS.md units: metres, degrees, seconds; if the values are right, "
+                             "confirm the units: --units-confirmed)", file=str(path))
         kept += len(plots)
         report.rows_kept = kept  # the validator sets the count of its own chunk
         report.warnings[:] = dict.fromkeys(report.warnings)  # each chunk repeats conversions' warnings
