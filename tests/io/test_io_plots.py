@@ -451,3 +451,26 @@ def test_no_warning_for_clean_files(tmp_path, sensor_set):
         warnings.simplefilter("always")
         read_plots(path, sensors=sensor_set)
     assert [str(w.message) for w in caught] == []
+
+
+def test_a_damaged_page_is_reported_as_damage(tmp_path):
+    """skytrack writes Parquet page checksums and verifies them on reading: a flipped byte in a
+    data page is reported as a damaged file, not as whatever the garbled values break (before:
+    'time goes backwards', or silently wrong plots)."""
+    import numpy as np
+    import pandas as pd
+
+    from skytrack.io import InputError, read_plots, write_plots
+
+    rng = np.random.default_rng(0)
+    n = 20_000
+    plots = pd.DataFrame({"time": np.sort(rng.uniform(0, 1000, n)), "sensor": "radar1",
+                          "range_m": rng.uniform(1e3, 2e5, n), "azimuth_deg": rng.uniform(0, 360, n)})
+    path = write_plots(plots, tmp_path / "plots.parquet")
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF  # inside the column data, far from the footer
+    path.write_bytes(bytes(data))
+    with pytest.raises(InputError) as info:
+        read_plots(path)
+    assert str(info.value).startswith(f"{path}: the Parquet file is damaged: ")
+    assert "checksum" in str(info.value)

@@ -230,6 +230,9 @@ def _reason(exc: Exception) -> str:
 
 
 def _parquet_error(path: Path, exc: Exception) -> InputError:
+    if "checksum" in str(exc).lower():
+        # a page of a file written with checksums (skytrack writes them) no longer matches its CRC
+        return InputError(f"the Parquet file is damaged: {_reason(exc)}", file=str(path))
     return InputError(f"not a readable Parquet file ({_reason(exc)})", file=str(path))
 
 
@@ -252,7 +255,7 @@ def arrow_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource | None 
 
 def _read_parquet(path: Path) -> pd.DataFrame:
     try:
-        return arrow_to_frame(pq.read_table(path))
+        return arrow_to_frame(pq.read_table(path, page_checksum_verification=True))
     except (pa.ArrowException, OSError) as exc:
         raise _parquet_error(path, exc) from None
 
@@ -275,7 +278,7 @@ def iter_parquet_tables(
         unique = len(set(stored.names)) == len(stored.names)  # else the first chunk raises, as always
         text = tuple(f.name for f in stored if unique and f.name in text_as_dictionary
                      and (pa.types.is_string(f.type) or pa.types.is_large_string(f.type)))
-        parquet = pq.ParquetFile(path, read_dictionary=list(text) or None)
+        parquet = pq.ParquetFile(path, read_dictionary=list(text) or None, page_checksum_verification=True)
         for batch in parquet.iter_batches(batch_size=chunk_rows):
             source = TableSource(display=str(path), path=path, row_offset=offset, dictionary_text=text)
             _check_unique_columns(batch.schema.names, source)
@@ -567,7 +570,7 @@ def write_table(df: pd.DataFrame, path: str | Path) -> Path:
     table = _plain_arrow_table(df, path, for_csv=fmt == "csv")
     try:
         if fmt == "parquet":
-            pq.write_table(table, path)
+            pq.write_table(table, path, write_page_checksum=True)  # readers can tell corruption
         elif path.name.lower().endswith(".gz"):
             with pa.CompressedOutputStream(str(path), "gzip") as stream:
                 pcsv.write_csv(table, stream)

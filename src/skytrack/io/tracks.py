@@ -222,7 +222,7 @@ class TrackWriter:
                 # dictionary columns are plain text in Parquet; without the Arrow schema in the
                 # file, readers read them as the plain text they are (not as categories)
                 self._writer = pq.ParquetWriter(str(self.path), self._schema, use_dictionary=text,
-                                                write_statistics=list(_STATISTICS_COLUMNS),
+                                                write_statistics=list(_STATISTICS_COLUMNS), write_page_checksum=True,
                                                 store_schema=not any(_is_dictionary_text(f.type) for f in self._schema))
             else:
                 self._stream = (
