@@ -41,6 +41,7 @@ from skytrack.io.checks import (
 )
 from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.plot_arrays import PlotStream, plot_batch_from_arrow
+from skytrack.io.plot_repeats import RepeatedRows
 from skytrack.io.schema import PLOT_SCHEMA, TEXT_COLUMNS
 from skytrack.io.tables import (
     TableSource,
@@ -216,6 +217,10 @@ def read_plots(path, sensors=None, lenient=False, *, epoch_utc=None):
     report = ReadReport(file=str(path))
     df, source = load_table(path, lenient=lenient, report=report)
     plots = _validate_plots(df, source, sensors, epoch_utc, lenient, report)
+    repeated = RepeatedRows()
+    repeated.add_frame(plots, 0)
+    if repeated.message():
+        report.warn(repeated.message())
     emit_warnings(report, lenient)
     return (plots, report) if lenient else plots
 
@@ -279,6 +284,7 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
         chunks = iter_csv_tables(path, chunk_rows, lenient=lenient, report=report)
     epoch_text = epoch_utc if epoch_utc is not None else (sensors.epoch_utc if sensors is not None else None)
     stream = PlotStream()
+    repeated = RepeatedRows()
     kept = 0
     for table, source in chunks:
         report.rows_read += len(table)
@@ -292,12 +298,18 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
             hint = "; ".join(_unit_problems(stream))
             raise InputError(f"{hint} (FORMATS.md units: metres, degrees, seconds; if the values are right, "
                              "confirm the units: --units-confirmed)", file=str(path))
+        if isinstance(plots, PlotBatch):
+            repeated.add_batch(plots, sensors.names, kept)
+        else:
+            repeated.add_frame(plots, kept)
         kept += len(plots)
         report.rows_kept = kept  # the validator sets the count of its own chunk
         report.warnings[:] = dict.fromkeys(report.warnings)  # each chunk repeats conversions' warnings
         if len(plots):
             yield plots
     _warn_units(stream, report)
+    if repeated.message():
+        report.warn(repeated.message())
     emit_warnings(report, lenient)
 
 
