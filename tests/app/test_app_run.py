@@ -154,3 +154,30 @@ def test_plots_in_kilometres_or_radians_stop_the_run_unless_confirmed(crossing, 
         summary = run_tracking(tmp_path / "plots.parquet", paths["sensors"], tmp_path / "t.parquet", chunk_rows=5000,
                                units_confirmed=True)
         assert summary.plots == len(plots)
+
+
+@pytest.mark.parametrize("suffix", ["parquet", "csv"])
+def test_evaluate_measures_from_the_input_start_stored_with_the_tracks(crossing, tmp_path, suffix):
+    """The tracks file keeps the input's time span (Parquet metadata, a sidecar JSON for CSV):
+    `evaluate` then counts the time to the first track from the first plot, as the demo does,
+    instead of from the first track (which gave 0 s)."""
+    from skytrack.app.evaluate import run_evaluation
+    from skytrack.io.tracks import read_tracks_metadata, sidecar_path
+
+    result, paths, _ = crossing
+    out = tmp_path / f"tracks.{suffix}"
+    run_tracking(paths["plots"], paths["sensors"], out)
+    metadata = read_tracks_metadata(out)
+    assert metadata["input_time_start_s"] == pytest.approx(float(result.plots["time"].min()), abs=1e-9)
+    assert metadata["input_time_end_s"] == pytest.approx(float(result.plots["time"].max()), abs=1e-9)
+    assert metadata["input_plots"] == len(result.plots) and metadata["input_file"] == paths["plots"].name
+    stored = run_evaluation(out, paths["truth"], json_out=tmp_path / "a.json").evaluation
+    given = run_evaluation(out, paths["truth"], json_out=tmp_path / "b.json",
+                           start_time_s=float(result.plots["time"].min())).evaluation
+    assert stored.summary["time_to_first_track_mean_s"] == given.summary["time_to_first_track_mean_s"]
+    assert stored.summary["time_to_first_track_mean_s"] > 5.0  # three scans of 4 s to confirm, at least
+    if suffix == "csv":
+        sidecar_path(out).unlink()  # a file written without the metadata: measured from the first track
+        assert read_tracks_metadata(out) is None
+        bare = run_evaluation(out, paths["truth"], json_out=tmp_path / "c.json").evaluation
+        assert bare.summary["time_to_first_track_mean_s"] < stored.summary["time_to_first_track_mean_s"]

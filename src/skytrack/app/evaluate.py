@@ -38,9 +38,13 @@ def run_evaluation(
     write the metrics to ``json_out`` (default: :func:`default_metrics_path`)."""
     from skytrack.analysis import evaluate
     from skytrack.io import read_sensors, read_tracks, read_truth, refuse_overwriting
+    from skytrack.io.tracks import read_tracks_metadata
 
     json_path = Path(json_out) if json_out is not None else default_metrics_path(tracks_path)
     refuse_overwriting(json_path, tracks=tracks_path, truth=truth_path, sensors=sensors_path)
+    if start_time_s is None:
+        # a tracks file of `skytrack track` knows when its input started
+        start_time_s = (read_tracks_metadata(tracks_path) or {}).get("input_time_start_s")
     sensor_set = read_sensors(sensors_path) if sensors_path else None
     evaluation = evaluate(
         read_tracks(tracks_path), read_truth(truth_path, sensors=sensor_set), cutoff_m=cutoff_m, order=order,

@@ -6,6 +6,7 @@ progress through an optional callback, so a GUI, a service or a benchmark can ca
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,15 +100,23 @@ def run_tracking(
     started = time.perf_counter()
     plots_read = 0
     report_progress("track", 0, total)
+    first_time, last_time = math.inf, -math.inf
     with TrackWriter(out) as writer:
         for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report,
                                        units_confirmed=units_confirmed):
             tracker.feed(chunk, source=str(plots_path))
+            first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
             writer.write(tracker.drain_arrow(), checked=True)
             plots_read += len(chunk)
             report_progress("track", plots_read, total)
         tracker.finish()
         writer.write(tracker.drain_arrow(), checked=True)
+        # evaluate measures times (to the first track, ...) from the input's start, not the first track's
+        writer.run_metadata = {
+            "input_file": plots_path.name, "input_plots": plots_read, "epoch_utc": sensor_set.epoch_utc,
+            "input_time_start_s": first_time if plots_read else None,
+            "input_time_end_s": last_time if plots_read else None,
+        }
     report_progress("track", plots_read, total if total is not None else plots_read)
     elapsed = time.perf_counter() - started
     summary = RunSummary(

@@ -15,6 +15,7 @@ integers or null; identity columns as in plots (``mode3a`` 4 octal digits, ``ica
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 from typing import Literal, overload
@@ -186,6 +187,9 @@ class TrackWriter:
         self._writer = None
         self._stream = None
         self.rows = 0
+        self.run_metadata: dict | None = None
+        """what the run knew of its input (epoch, time span), stored with the file on closing
+        (:func:`read_tracks_metadata`)"""
 
     def _schema_for(self, table: pa.Table) -> pa.Schema:
         fields = []
@@ -241,14 +245,47 @@ class TrackWriter:
         if self._writer is None:
             # nothing was written: still leave a valid, empty tracks file
             write_tracks(add_missing_columns(pd.DataFrame({c: [] for c in TRACK_SCHEMA.required}), TRACK_SCHEMA), self.path)
+            self._write_sidecar()
             return
+        if self.run_metadata is not None and self.format == "parquet":
+            self._writer.add_key_value_metadata({METADATA_KEY: json.dumps(self.run_metadata, allow_nan=False)})
         self._writer.close()
         if self._stream is not None:
             self._stream.close()
+        if self.format != "parquet":
+            self._write_sidecar()
         self._writer = None
+
+    def _write_sidecar(self) -> None:
+        if self.run_metadata is not None:
+            sidecar_path(self.path).write_text(json.dumps(self.run_metadata, indent=2, allow_nan=False) + "\n")
 
     def __enter__(self) -> TrackWriter:
         return self
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+#: key of the run metadata in a tracks Parquet file's key-value metadata
+METADATA_KEY = "skytrack.run"
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """Where the run metadata of a CSV tracks file lives: ``tracks.csv`` -> ``tracks.csv.meta.json``."""
+    path = Path(path)
+    return path.with_name(path.name + ".meta.json")
+
+
+def read_tracks_metadata(path: str | Path) -> dict | None:
+    """The run metadata a :class:`TrackWriter` stored with a tracks file (epoch, the input's
+    time span), or ``None`` for files written otherwise."""
+    path = Path(path)
+    try:
+        if table_format(path) == "parquet":
+            stored = (pq.read_metadata(path).metadata or {}).get(METADATA_KEY.encode())
+            return None if stored is None else json.loads(stored)
+        sidecar = sidecar_path(path)
+        return json.loads(sidecar.read_text()) if sidecar.exists() else None
+    except (OSError, ValueError, pa.ArrowException):
+        return None  # a damaged or foreign file: the evaluation goes without it
