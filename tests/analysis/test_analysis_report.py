@@ -135,3 +135,29 @@ def test_metrics_figure_is_written(tmp_path):
     out = plot_metrics_over_time(ev, tmp_path / "metrics.png", dpi=80)
     assert _is_real_picture(out)
     assert math.isfinite(ev.summary["gospa_mean_m"])
+
+
+def test_ppi_keeps_truth_and_plots_visible_and_tells_100_tracks_apart():
+    """What is drawn: truth wide and light under the tracks, target plots above the tracks,
+    and 100 tracks in 60 distinct (colour, dash) styles (they shared 10 colours)."""
+    from matplotlib.collections import LineCollection, PathCollection
+
+    from skytrack.analysis.report import TRACK_WIDTH, TRUTH_WIDTH, ppi_figure, track_styles
+
+    plots, truth, tracks = _scene()
+    many = pd.concat([tracks.assign(track_id=tracks["track_id"] * 1000 + k, x=tracks["x"] + 500.0 * k)
+                      for k in range(100 // tracks["track_id"].nunique() + 1)], ignore_index=True)
+    many = many[many["track_id"].isin(np.sort(many["track_id"].unique())[:100])]
+    fig = ppi_figure(plots, truth, many, sensors(), dpi=60)
+    ax = fig.axes[0]
+    by_label = {c.get_label(): c for c in ax.collections if isinstance(c, LineCollection)}
+    truth_lines, track_lines = by_label["truth"], by_label["tracks"]
+    assert truth_lines.get_zorder() < track_lines.get_zorder()
+    assert TRUTH_WIDTH >= 2.5 * TRACK_WIDTH and set(truth_lines.get_linewidths()) == {TRUTH_WIDTH}
+    assert len(track_lines.get_paths()) == 100
+    styles = {(tuple(np.round(c, 3)), str(d)) for c, d in track_styles(100)}
+    assert len(styles) == 60
+    assert len({tuple(np.round(c, 3)) for c in track_lines.get_colors()}) == 20
+    dots = [c for c in ax.collections if isinstance(c, PathCollection)]
+    assert max(c.get_zorder() for c in dots) > track_lines.get_zorder()  # target plots over the tracks
+    assert "100 tracks" in ax.get_title()

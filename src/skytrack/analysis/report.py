@@ -23,6 +23,7 @@ from typing import Iterable
 
 import numpy as np
 import pandas as pd
+import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -136,6 +137,12 @@ def _is_false_plot(plots: pd.DataFrame) -> np.ndarray | None:
     return (ids.isna() | (ids.astype(str) == "")).to_numpy()
 
 
+#: truth: wide and light, under the tracks; tracks: thin, on top
+TRUTH_COLOUR = "0.78"
+TRUTH_WIDTH = 3.0
+TRACK_WIDTH = 1.0
+
+
 def plot_ppi(
     plots_df: pd.DataFrame | None,
     truth_df: pd.DataFrame | None,
@@ -157,9 +164,45 @@ def plot_ppi(
 
     ``time_window = (t0, t1)`` restricts every table to that span.  Target vs false plots
     use the simulator's ``truth_id`` column when present (``""`` or null = false plot).
-    Returns the written path.
+    Returns the written path; :func:`ppi_figure` gives the figure.
     """
     path = Path(path)
+    fig = ppi_figure(plots_df, truth_df, tracks_df, sensors, time_window=time_window,
+                     default_altitude_m=default_altitude_m, n_track_labels=n_track_labels,
+                     ring_spacing_km=ring_spacing_km, extent_km=extent_km, title=title, figsize=figsize, dpi=dpi)
+    fig.savefig(path)
+    return path
+
+
+#: track line styles: 20 colours x 3 dash patterns, so that 60 tracks in view look different
+TRACK_COLOURS = tuple(matplotlib.colormaps["tab20"].colors)
+TRACK_DASHES = ("solid", (0, (6, 2)), (0, (1.5, 1.5)))
+
+
+def track_styles(count: int) -> list[tuple[tuple[float, ...], object]]:
+    """(colour, line style) of ``count`` tracks: the 20 colours first solid, then dashed, then dotted."""
+    return [(TRACK_COLOURS[k % len(TRACK_COLOURS)], TRACK_DASHES[(k // len(TRACK_COLOURS)) % len(TRACK_DASHES)])
+            for k in range(count)]
+
+
+def ppi_figure(
+    plots_df: pd.DataFrame | None,
+    truth_df: pd.DataFrame | None,
+    tracks_df: pd.DataFrame | None,
+    sensors: SensorSet | Iterable[Sensor],
+    *,
+    time_window: tuple[float, float] | None = None,
+    default_altitude_m: float | None = None,
+    n_track_labels: int = 15,
+    ring_spacing_km: float | None = None,
+    extent_km: tuple[float, float, float, float] | None = None,
+    title: str | None = None,
+    figsize: tuple[float, float] = (10.0, 10.0),
+    dpi: int = 150,
+) -> Figure:
+    """The figure of :func:`plot_ppi`.  Truth is drawn as wide light lines under the tracks
+    and the target plots as small dots over them, so that neither hides the other; tracks
+    take 60 distinct colour and dash styles."""
     by_name = _sensor_map(sensors)
     plots_df, truth_df, tracks_df = (_in_window(f, time_window) for f in (plots_df, truth_df, tracks_df))
     fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
@@ -179,8 +222,8 @@ def plot_ppi(
         else:
             ax.scatter(xy[false, 0], xy[false, 1], s=2, c="0.65", lw=0, rasterized=True, zorder=1)
             codes = pd.factorize(plots_df["truth_id"].astype(str).to_numpy()[~false])[0]
-            ax.scatter(xy[~false, 0], xy[~false, 1], s=3, c=codes % 20, cmap="tab20", vmin=0, vmax=19, alpha=0.35, lw=0,
-                       rasterized=True, zorder=2)
+            ax.scatter(xy[~false, 0], xy[~false, 1], s=2.5, c=codes % 20, cmap="tab20", vmin=0, vmax=19, alpha=0.6, lw=0,
+                       rasterized=True, zorder=5)
             handles.append(Line2D([], [], ls="", marker="o", ms=4, color="0.65", label=f"false / clutter plots ({int(false.sum())})"))
             handles.append(Line2D([], [], ls="", marker="o", ms=4, color="tab:blue", alpha=0.5,
                                   label=f"target plots ({int((~false).sum())}, colour per target)"))
@@ -189,16 +232,21 @@ def plot_ppi(
     if truth_df is not None and len(truth_df):
         keys = ["target_id", "segment"] if "segment" in truth_df.columns else ["target_id"]
         lines = _lines(truth_df, keys)
-        ax.add_collection(LineCollection(lines, colors="0.1", linewidths=0.7, zorder=3))
-        handles.append(Line2D([], [], color="0.1", lw=0.9, label=f"truth ({truth_df['target_id'].nunique()} objects)"))
+        ax.add_collection(LineCollection(lines, colors=TRUTH_COLOUR, linewidths=TRUTH_WIDTH, zorder=2,
+                                         capstyle="round", label="truth"))
+        handles.append(Line2D([], [], color=TRUTH_COLOUR, lw=TRUTH_WIDTH,
+                              label=f"truth ({truth_df['target_id'].nunique()} objects)"))
     n_tracks = 0
     if tracks_df is not None and len(tracks_df):
         lines = _lines(tracks_df, ["track_id"])
         ids = np.sort(tracks_df["track_id"].unique())
         n_tracks = ids.size
-        colors = [f"C{k % 10}" for k in range(len(lines))]
-        ax.add_collection(LineCollection(lines, colors=colors, linewidths=1.2, alpha=0.8, zorder=4))
-        handles.append(Line2D([], [], color="C0", lw=1.2, label=f"tracks ({n_tracks}; ids on the {min(n_track_labels, n_tracks)} longest)"))
+        styles = track_styles(len(lines))
+        ax.add_collection(LineCollection(lines, colors=[c for c, _ in styles], linestyles=[d for _, d in styles],
+                                         linewidths=TRACK_WIDTH, zorder=4, label="tracks"))
+        handles.append(Line2D([], [], color=TRACK_COLOURS[0], lw=TRACK_WIDTH,
+                              label=f"tracks ({n_tracks}, {min(n_tracks, 60)} styles; ids on the "
+                                    f"{min(n_track_labels, n_tracks)} longest)"))
         lengths = tracks_df.groupby("track_id").size().sort_values(ascending=False, kind="stable")
         last = tracks_df.sort_values("time").groupby("track_id")[["x", "y"]].last()
         for track_id in lengths.index[:n_track_labels]:
@@ -221,8 +269,7 @@ def plot_ppi(
     ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
     if footnote:
         fig.text(0.01, 0.002, " | ".join(footnote), fontsize=7, color="0.3", ha="left", va="bottom")
-    fig.savefig(path)
-    return path
+    return fig
 
 
 def _draw_radars(ax, radars: list[Sensor], ring_spacing_km: float | None, handles: list) -> None:
