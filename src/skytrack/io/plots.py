@@ -42,6 +42,7 @@ from skytrack.io.checks import (
 from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.plot_arrays import PlotStream, plot_batch_from_arrow
 from skytrack.io.plot_repeats import RepeatedRows
+from skytrack.io.time_units import BeamRateCheck
 from skytrack.io.schema import PLOT_SCHEMA, TEXT_COLUMNS
 from skytrack.io.tables import (
     TableSource,
@@ -285,6 +286,7 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
     epoch_text = epoch_utc if epoch_utc is not None else (sensors.epoch_utc if sensors is not None else None)
     stream = PlotStream()
     repeated = RepeatedRows()
+    beam = BeamRateCheck(sensors)
     kept = 0
     for table, source in chunks:
         report.rows_read += len(table)
@@ -294,8 +296,14 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
         if plots is None:
             frame = chunk_to_frame(table, source)
             plots = _validate_plots(frame, source, sensors, epoch_utc, lenient, report, stream)
-        if stop_on_units and stream.rows >= _UNIT_STOP_MIN_ROWS and _unit_problems(stream):
-            hint = "; ".join(_unit_problems(stream))
+        if beam.wants_more:
+            if isinstance(plots, PlotBatch):
+                beam.add(np.asarray(sensors.names, dtype=object)[plots.sensor], plots.time, np.degrees(plots.azimuth))
+            else:
+                beam.add(plots["sensor"].to_numpy(dtype=object), plots["time"].to_numpy(dtype=float),
+                         plots["azimuth_deg"].to_numpy(dtype=float))
+        if stop_on_units and stream.rows >= _UNIT_STOP_MIN_ROWS and (_unit_problems(stream) or beam.problems()):
+            hint = "; ".join(_unit_problems(stream) + beam.problems())
             raise InputError(f"{hint} (FORMATS.md units: metres, degrees, seconds; if the values are right, "
                              "confirm the units: --units-confirmed)", file=str(path))
         if isinstance(plots, PlotBatch):
@@ -308,6 +316,8 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
         if len(plots):
             yield plots
     _warn_units(stream, report)
+    for problem in beam.problems():
+        report.warn(problem)
     if repeated.message():
         report.warn(repeated.message())
     emit_warnings(report, lenient)
