@@ -474,3 +474,17 @@ def test_a_damaged_page_is_reported_as_damage(tmp_path):
         read_plots(path)
     assert str(info.value).startswith(f"{path}: the Parquet file is damaged: ")
     assert "checksum" in str(info.value)
+
+
+@pytest.mark.parametrize("metadata", [b"{not json", b'{"index_columns": []}', b'{"columns": 5, "index_columns": []}'])
+def test_damaged_pandas_metadata_does_not_matter(tmp_path, metadata):
+    """A Parquet file's "pandas" metadata only rebuilds an index: damaged, it raised
+    JSONDecodeError, KeyError or TypeError from inside pyarrow; now it is not read at all."""
+    from skytrack.io import read_plots
+
+    plots = pd.DataFrame({"time": [0.0, 1.0, 2.0], "sensor": "radar1", "range_m": [1e4, 2e4, 3e4],
+                          "azimuth_deg": [10.0, 20.0, 30.0]})
+    table = pa.Table.from_pandas(plots, preserve_index=False).replace_schema_metadata({b"pandas": metadata})
+    pq.write_table(table, tmp_path / "plots.parquet")
+    back = read_plots(tmp_path / "plots.parquet")
+    np.testing.assert_array_equal(back["range_m"].to_numpy(), plots["range_m"].to_numpy())

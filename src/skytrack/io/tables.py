@@ -250,7 +250,9 @@ def arrow_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource | None 
             for name, column in zip(names, table.columns)
         ]
         table = pa.Table.from_arrays(columns, names=names)
-    return table.to_pandas(types_mapper=_string_mapper)
+    # the "pandas" metadata of a file only rebuilds an index, which no table of docs/formats.md
+    # has; damaged, it raised JSONDecodeError, KeyError or TypeError from inside pyarrow
+    return table.replace_schema_metadata(None).to_pandas(types_mapper=_string_mapper)
 
 
 def _read_parquet(path: Path) -> pd.DataFrame:
