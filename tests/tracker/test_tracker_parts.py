@@ -15,6 +15,7 @@ from skytrack.tracker.bank import CONFIRMED, TENTATIVE, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.schedule import beam_crossing_time, check_time_order, estimate_beam_phase
 from skytrack.tracker.tracker import Tracker
+from skytrack.sim import load_scenario, simulate
 
 # ----------------------------------------------------------------------------- configuration
 
@@ -229,3 +230,33 @@ def test_plot_batch_parses_identity_codes_from_chunked_arrow_columns():
     np.testing.assert_array_equal(batch.mode_s, [0x4840D6, -1, 0x4840D6])
     with pytest.raises(ValueError, match=r"row 1, column mode3a: '7g00' is not an octal code"):
         PlotBatch.from_frame(frame.assign(mode3a=["7000", "7g00", None]), ["r"])
+
+
+@pytest.mark.parametrize("gap_s", [1e6, 1e11])
+def test_a_long_gap_is_not_walked_a_window_at_a_time(gap_s):
+    """A recording with a gap of days (or an absurd 1e11 s) tracks in the time of one without:
+    once no track is alive the windows and output instants of the gap are skipped (1e6 s took
+    16 s, 1e8 s would have taken half an hour); the tracks are those of the two halves."""
+    import time
+
+    result = simulate(load_scenario("crossing"))
+    plots = result.plots.copy()
+    half = len(plots) // 2
+    plots.loc[half:, "time"] += gap_s
+    started = time.perf_counter()
+    tracker = Tracker(result.sensors, TrackerConfig())
+    tracks = tracker.run(plots)
+    assert time.perf_counter() - started < 5.0
+    reference = Tracker(result.sensors, TrackerConfig()).run(plots.iloc[:half])
+    first_half = tracks[tracks["time"] < plots["time"].iloc[half - 1] + 100.0]
+    assert len(first_half) >= len(reference) > 0
+    assert tracks["time"].max() > gap_s  # the second half is tracked too
+    assert tracker.stats["windows"] < 500
+
+
+def test_times_beyond_the_trackers_range_are_refused():
+    result = simulate(load_scenario("crossing"))
+    plots = result.plots.iloc[:50].copy()
+    plots.loc[plots.index[7]:, "time"] += 3.6e16
+    with pytest.raises(ValueError, match=r"row 7, column time: .* s is beyond the tracker's range"):
+        Tracker(result.sensors, TrackerConfig()).run(plots)

@@ -59,6 +59,11 @@ class OutputClock:
             return self.config.output_interval_s
         return float(self.period) if self.rotating else self.window_s
 
+    def skip_to(self, limit: float) -> None:
+        """Advance past the instants not after ``limit`` without reporting them."""
+        if self.next is not None and self.next <= limit + 1e-9:
+            self.next += (math.floor((limit + 1e-9 - self.next) / self.step) + 1) * self.step
+
     def instants_until(self, limit: float):
         """Output instants not after ``limit`` (advances the clock)."""
         if self.next is None:

@@ -66,6 +66,21 @@ def beam_crossing_time(azimuth: np.ndarray, phase: float, period: float, window_
     return window_start + np.remainder(crossing - window_start, period)
 
 
+#: plot times beyond this many seconds from the epoch are refused: at 1e12 s a double still
+#: resolves 0.1 ms, at 3.6e16 s adding a 4 s scan no longer changes the time
+MAX_ABS_TIME_S = 1e12
+
+
+def check_time_range(plots: PlotBatch, source: str = "plots") -> None:
+    """Raise on a plot time the windows cannot resolve (|time| > :data:`MAX_ABS_TIME_S`)."""
+    far = np.flatnonzero(~(np.abs(plots.time) <= MAX_ABS_TIME_S))
+    if far.size:
+        row = int(plots.row[far[0]])
+        raise ValueError(f"{source}, row {row}, column time: {plots.time[far[0]]:g} s is beyond the tracker's range "
+                         f"(|time| <= {MAX_ABS_TIME_S:g} s from the epoch; is the time in another unit or the epoch "
+                         "wrong?)")
+
+
 def check_time_order(plots: PlotBatch, sensors: SensorSet, last_times: np.ndarray, source: str = "plots") -> None:
     """Raise if time goes backwards within a sensor (across chunks too, via ``last_times``)."""
     for s in np.unique(plots.sensor):
@@ -100,7 +115,8 @@ class Schedule:
 
     # ------------------------------------------------------------------ input
     def admit(self, chunk: PlotBatch, source: str) -> None:
-        """Check a new chunk's time order, settle beam phases and start new sensors' windows."""
+        """Check a new chunk's times, settle beam phases and start new sensors' windows."""
+        check_time_range(chunk, source)
         check_time_order(chunk, self.sensors, self.last_time, source)
         if len(chunk) == 0:
             return
@@ -143,8 +159,17 @@ class Schedule:
     def window_start(self, s, index):
         return np.nan_to_num(self.phase[s]) + index * self.window_length[s]
 
-    def complete_windows(self, pending: PlotBatch, final: bool) -> tuple[np.ndarray, list, np.ndarray]:
-        """Windows that can no longer receive plots, in start order.
+    def skip_idle(self, until: float) -> None:
+        """Move every sensor's next window to the one holding time ``until``: when no track is
+        alive and no plot comes before ``until``, the windows before it have nothing to do (a
+        gap of days in a recording is not walked a scan at a time)."""
+        for s in np.flatnonzero(self.seen):
+            self.next_window[s] = max(self.next_window[s], int(self.window_index(s, until)))
+
+    def complete_windows(self, pending: PlotBatch, final: bool,
+                         max_windows: int | None = None) -> tuple[np.ndarray, list, np.ndarray]:
+        """Windows that can no longer receive plots, in start order, at most ``max_windows`` of them
+        (the earliest; the caller asks again for the rest).
 
         Returns ``(order, windows, leftover)``: ``order`` sorts the pending plots by sensor,
         window and time, so that each window's plots are the contiguous slice ``rows`` of the
@@ -165,6 +190,9 @@ class Schedule:
         counts = np.maximum(complete_until - first + 1, 0)
         if counts.sum() == 0:
             return none
+        if max_windows is not None:
+            # the earliest max_windows windows are among each sensor's first max_windows
+            counts = np.minimum(counts, max_windows)
         window_sensor = np.repeat(sensors, counts)
         window_index = np.repeat(first, counts) + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts))
         window_start = self.window_start(window_sensor, window_index)
@@ -175,6 +203,8 @@ class Schedule:
             allowed = (window_start < limit[0]) | ((window_start == limit[0]) & (window_sensor < limit[1]))
             window_sensor, window_index, window_start = window_sensor[allowed], window_index[allowed], window_start[allowed]
         by_start = np.lexsort((window_sensor, window_start))
+        if max_windows is not None:
+            by_start = by_start[:max_windows]
         keys_sensor = pending.sensor[order]
         keys_window = plot_window[order]
         taken = np.zeros(len(pending), dtype=bool)

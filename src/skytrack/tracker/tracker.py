@@ -31,6 +31,9 @@ from skytrack.tracker.window_kernels import report_cv
 
 __all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker"]
 
+#: windows processed per schedule call; between calls an empty tracker skips idle gaps
+WINDOWS_PER_STEP = 4096
+
 
 class Tracker:
     """Multi-target tracker over plots of one or more radars.
@@ -151,22 +154,32 @@ class Tracker:
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
-        order, windows, leftover = self.schedule.complete_windows(self.pending, final)
-        if not windows:
-            return
-        pending, converted = self.pending.take(order), self.pending_converted.take(order)
-        for s, _, start, end, rows in windows:
-            if self.clock.next is None:
-                first = float(pending.time[rows].min()) if rows.stop > rows.start else start
-                self.clock.start(first, self.schedule.phase[self.output_sensor])
-            self._emit_until(start)
-            self.stats["windows"] += 1
-            self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
-            self.last_window_end = max(self.last_window_end, end)
-        self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
+        while True:
+            if len(self.bank) == 0 and len(self.pending):
+                self.schedule.skip_idle(float(self.pending.time.min()))
+            order, windows, leftover = self.schedule.complete_windows(self.pending, final, WINDOWS_PER_STEP)
+            if not windows:
+                return
+            pending, converted = self.pending.take(order), self.pending_converted.take(order)
+            for s, _, start, end, rows in windows:
+                if self.clock.next is None:
+                    first = float(pending.time[rows].min()) if rows.stop > rows.start else start
+                    self.clock.start(first, self.schedule.phase[self.output_sensor])
+                self._emit_until(start)
+                if rows.stop == rows.start and len(self.bank) == 0:
+                    continue  # nothing alive, nothing seen: the window has nothing to do
+                self.stats["windows"] += 1
+                self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
+                self.last_window_end = max(self.last_window_end, end)
+            self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
+            if len(windows) < WINDOWS_PER_STEP:
+                return
 
     # ------------------------------------------------------------------ output
     def _emit_until(self, limit: float) -> None:
+        if not (self.bank.status == CONFIRMED).any():
+            self.clock.skip_to(limit)  # no confirmed track: no row to report until then
+            return
         for instant in self.clock.instants_until(limit):
             self.stats["output_instants"] += 1
             if self.scan.fused_q is not None:
