@@ -488,3 +488,21 @@ def test_damaged_pandas_metadata_does_not_matter(tmp_path, metadata):
     pq.write_table(table, tmp_path / "plots.parquet")
     back = read_plots(tmp_path / "plots.parquet")
     np.testing.assert_array_equal(back["range_m"].to_numpy(), plots["range_m"].to_numpy())
+
+
+@pytest.mark.parametrize("value", [1e308, -5000.0, 2e5])
+def test_mode_c_outside_its_range_is_refused(tmp_path, value):
+    """A Mode C of 1e308 ft was tracked silently (it broke the k-d tree of the reference path):
+    altitudes outside the Mode C code's range are a located error, by both read paths."""
+    from skytrack.geo.sensors import Origin, Sensor, SensorSet
+    from skytrack.io import InputError, iter_plot_batches, read_plots
+
+    plots = pd.DataFrame({"time": [0.0, 1.0, 2.0], "sensor": "radar1", "range_m": [1e4, 2e4, 3e4],
+                          "azimuth_deg": [10.0, 20.0, 30.0], "mode_c_ft": [10000.0, value, 12000.0]})
+    plots.to_parquet(tmp_path / "plots.parquet", index=False)
+    with pytest.raises(InputError, match=r"row 1, column mode_c_ft: .* is outside \[-1500, 130000\] ft"):
+        read_plots(tmp_path / "plots.parquet")
+    sensors = SensorSet(Origin(48.0, 2.0, 0.0), [Sensor("radar1", x=0.0, y=0.0, sigma_range_m=40.0,
+                                                        sigma_azimuth_deg=0.07, scan_period_s=4.0)])
+    with pytest.raises(InputError, match=r"row 1, column mode_c_ft"):
+        list(iter_plot_batches(tmp_path / "plots.parquet", sensors))

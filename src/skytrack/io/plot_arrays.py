@@ -37,6 +37,9 @@ _IFF_CODES = {value: k for k, value in enumerate(IFF_VALUES)}
 _REQUIRED = ("time", "sensor", "range_m", "azimuth_deg")
 
 
+#: Mode C altitudes outside this range are refused: the code spans -1 000 to 126 700 ft
+MODE_C_RANGE_FT = (-1500.0, 130_000.0)
+
 @dataclass
 class PlotStream:
     """What the checks of one chunk pass on to the next, so that a file read in chunks is
@@ -83,8 +86,10 @@ def plot_batch_from_arrow(table: pa.Table | pa.RecordBatch, sensors: SensorSet, 
     optional = {name: _optional_numbers(table, name, count) for name in ("elevation_deg", "range_rate_mps", "mode_c_ft")}
     if any(values is None or np.isinf(values).any() for values in optional.values()):
         return None
-    elevation = optional["elevation_deg"]
+    elevation, mode_c = optional["elevation_deg"], optional["mode_c_ft"]
     if ((elevation < -90) | (elevation > 90)).any():  # NaN compares False: absent is fine
+        return None
+    if ((mode_c < MODE_C_RANGE_FT[0]) | (mode_c > MODE_C_RANGE_FT[1])).any():
         return None
     if not _scan_ok(table) or not _extra_text_ok(table):
         return None

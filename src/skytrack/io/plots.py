@@ -40,7 +40,7 @@ from skytrack.io.checks import (
     time_column,
 )
 from skytrack.io.errors import InputError, ReadReport
-from skytrack.io.plot_arrays import PlotStream, plot_batch_from_arrow
+from skytrack.io.plot_arrays import MODE_C_RANGE_FT, PlotStream, plot_batch_from_arrow
 from skytrack.io.plot_repeats import RepeatedRows
 from skytrack.io.time_units import BeamRateCheck
 from skytrack.io.schema import PLOT_SCHEMA, TEXT_COLUMNS
@@ -98,9 +98,12 @@ def _validate_plots(
     if "elevation_deg" in df.columns:
         elevation = as_float(df, "elevation_deg", checks, required=False)
         flag_values(checks, (elevation < -90) | (elevation > 90), elevation, "elevation_deg", "is outside [-90, 90]")
-    for name in ("range_rate_mps", "mode_c_ft"):
-        if name in df.columns:
-            as_float(df, name, checks, required=False)
+    if "range_rate_mps" in df.columns:
+        as_float(df, "range_rate_mps", checks, required=False)
+    if "mode_c_ft" in df.columns:
+        mode_c = as_float(df, "mode_c_ft", checks, required=False)
+        flag_values(checks, (mode_c < MODE_C_RANGE_FT[0]) | (mode_c > MODE_C_RANGE_FT[1]), mode_c, "mode_c_ft",
+                    f"is outside [{MODE_C_RANGE_FT[0]:g}, {MODE_C_RANGE_FT[1]:g}] ft (the Mode C range)")
     if "scan" in df.columns:
         as_int(df, "scan", checks, nullable=True)
     check_identity_columns(df, checks, report)

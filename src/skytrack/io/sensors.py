@@ -4,8 +4,9 @@ Validation: ``format_version`` is version 1 (written ``"1"``, ``1``, ``"1.0"`` o
 ``1.x``, as other tools write it); ``epoch_utc``, when given, is a timestamp;
 ``origin`` has ``lat`` in [-90, 90], ``lon`` in [-180, 180] and a finite ``alt_m``; each
 sensor has a unique non-empty ``name`` and a ``type`` in ``SENSOR_TYPES``; numbers are
-numbers (not text, not booleans) and finite; ``sigma_*`` > 0, ``scan_period_s`` > 0,
-``max_range_m`` > 0, ``0 <= p_detection <= 1``, ``clutter_per_scan >= 0``; radars have
+numbers (not text, not booleans) and finite, within plausibility limits far beyond any
+surveillance sensor (``_RULES``: e.g. ``0 < sigma_range_m <= 1e5``, ``0 < scan_period_s <=
+3600``, ``0 <= p_detection <= 1``); radars have
 ``sigma_range_m`` and ``sigma_azimuth_deg``, a ``radar-3d`` also ``sigma_elevation_deg``,
 ground radars (they rotate) ``scan_period_s``;
 a sensor's position is known (lat/lon or x/y, except airborne radars and ADS-B) and,
@@ -42,15 +43,18 @@ _TOP_LEVEL_KEYS = ("format_version", "epoch_utc", "origin", "sensors")
 _RULES: dict[str, tuple[Any, str]] = {
     "lat": (lambda v: -90 <= v <= 90, "must be in [-90, 90]"),
     "lon": (lambda v: -180 <= v <= 180, "must be in [-180, 180]"),
-    "scan_period_s": (lambda v: v > 0, "must be > 0"),
-    "sigma_range_m": (lambda v: v > 0, "must be > 0"),
-    "sigma_azimuth_deg": (lambda v: v > 0, "must be > 0"),
-    "sigma_elevation_deg": (lambda v: v > 0, "must be > 0"),
-    "sigma_range_rate_mps": (lambda v: v > 0, "must be > 0"),
-    "max_range_m": (lambda v: v > 0, "must be > 0"),
+    # upper limits: far beyond any surveillance sensor, below what breaks the arithmetic
+    # (a sigma of 1e300 overflowed the covariance)
+    "scan_period_s": (lambda v: 0 < v <= 3600, "must be in (0, 3600]"),
+    "sigma_range_m": (lambda v: 0 < v <= 1e5, "must be in (0, 1e+05]"),
+    "sigma_azimuth_deg": (lambda v: 0 < v <= 45, "must be in (0, 45]"),
+    "sigma_elevation_deg": (lambda v: 0 < v <= 45, "must be in (0, 45]"),
+    "sigma_range_rate_mps": (lambda v: 0 < v <= 1e4, "must be in (0, 1e+04]"),
+    "max_range_m": (lambda v: 0 < v <= 1e7, "must be in (0, 1e+07]"),
+    "alt_m": (lambda v: -1e4 <= v <= 1e6, "must be in [-1e+04, 1e+06]"),
+    "clutter_per_scan": (lambda v: 0 <= v <= 1e7, "must be in [0, 1e+07]"),
     "min_elevation_deg": (lambda v: -90 <= v <= 90, "must be in [-90, 90]"),
     "p_detection": (lambda v: 0 <= v <= 1, "must be in [0, 1]"),
-    "clutter_per_scan": (lambda v: v >= 0, "must be >= 0"),
 }
 
 
@@ -66,8 +70,10 @@ class _Where:
 
 
 def _show(value: Any) -> str:
-    if isinstance(value, float) and value == int(value) and math.isfinite(value):
+    if isinstance(value, float) and math.isfinite(value) and abs(value) < 1e15 and value == int(value):
         return str(int(value))
+    if isinstance(value, float):
+        return f"{value:g}"
     return json.dumps(value) if isinstance(value, str) else repr(value)
 
 
