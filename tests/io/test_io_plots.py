@@ -506,3 +506,28 @@ def test_mode_c_outside_its_range_is_refused(tmp_path, value):
                                                         sigma_azimuth_deg=0.07, scan_period_s=4.0)])
     with pytest.raises(InputError, match=r"row 1, column mode_c_ft"):
         list(iter_plot_batches(tmp_path / "plots.parquet", sensors))
+
+
+@pytest.mark.parametrize("suffix", ["parquet", "csv"])
+def test_airborne_plots_need_their_platform_and_platform_values_are_numbers(tmp_path, suffix):
+    """Both were plain errors without file, row or column ("could not convert string to float:
+    'abc'", "sensor 'air' is airborne: plots need platform_x/y/z columns")."""
+    from skytrack.geo.sensors import Origin, Sensor, SensorSet
+    from skytrack.io import InputError, iter_plot_batches
+
+    sensors = SensorSet(Origin(48.0, 2.0, 0.0), [
+        Sensor("radar1", x=0.0, y=0.0, sigma_range_m=40.0, sigma_azimuth_deg=0.07, scan_period_s=4.0),
+        Sensor("air", type="radar-airborne", sigma_range_m=50.0, sigma_azimuth_deg=0.5)])
+    plots = pd.DataFrame({"time": [0.0, 1.0, 2.0, 3.0], "sensor": ["radar1", "radar1", "air", "air"],
+                          "range_m": [1e4, 2e4, 3e4, 4e4], "azimuth_deg": [10.0, 20.0, 30.0, 40.0]})
+    path = tmp_path / f"plots.{suffix}"
+    write = (lambda df: df.to_parquet(path, index=False)) if suffix == "parquet" else (
+        lambda df: df.to_csv(path, index=False))
+    write(plots)
+    with pytest.raises(InputError) as info:
+        list(iter_plot_batches(path, sensors))
+    assert "row 2" in str(info.value) and "column platform_x: sensor 'air' is airborne" in str(info.value)
+    with_platform = plots.assign(platform_x=[np.nan, np.nan, 0.0, "abc"], platform_y=0.0, platform_z=9000.0)
+    write(with_platform.astype({"platform_x": str}) if suffix == "parquet" else with_platform)
+    with pytest.raises(InputError, match=r"row 3.*column platform_x: value 'abc' is not a number"):
+        list(iter_plot_batches(path, sensors))

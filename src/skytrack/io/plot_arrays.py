@@ -107,6 +107,9 @@ def plot_batch_from_arrow(table: pa.Table | pa.RecordBatch, sensors: SensorSet, 
         platform = np.full((count, 6), np.nan)
     if mode3a is None or mode_s is None or iff is None:
         return None
+    airborne = np.array([s.is_moving for s in sensors.sensors], dtype=bool)
+    if airborne.any() and (airborne[sensor] & ~np.isfinite(platform[:, :3]).all(axis=1)).any():
+        return None  # an airborne radar's plot without its carrier's position: the detailed path says where
 
     stream.add_units(range_m, azimuth)
     present, latest = _latest_per_sensor(time, sensor)

@@ -22,7 +22,7 @@ from typing import Literal, overload
 import numpy as np
 import pandas as pd
 
-from skytrack.core.plots import PlotBatch
+from skytrack.core.plots import PLATFORM_COLUMNS, PlotBatch
 from skytrack.geo.sensors import SensorSet
 from skytrack.io.checks import (
     RowChecks,
@@ -100,6 +100,9 @@ def _validate_plots(
         flag_values(checks, (elevation < -90) | (elevation > 90), elevation, "elevation_deg", "is outside [-90, 90]")
     if "range_rate_mps" in df.columns:
         as_float(df, "range_rate_mps", checks, required=False)
+    platform = {name: as_float(df, name, checks, required=False) for name in PLATFORM_COLUMNS if name in df.columns}
+    if sensors is not None:
+        _flag_airborne_without_platform(checks, df, sensors, platform)
     if "mode_c_ft" in df.columns:
         mode_c = as_float(df, "mode_c_ft", checks, required=False)
         flag_values(checks, (mode_c < MODE_C_RANGE_FT[0]) | (mode_c > MODE_C_RANGE_FT[1]), mode_c, "mode_c_ft",
@@ -132,6 +135,22 @@ def _validate_plots(
         latest = pd.Series(df["time"].to_numpy()).groupby(df["sensor"].to_numpy(dtype=object)).max()
         stream.add_latest(latest.index, latest.to_numpy())
     return df
+
+
+def _flag_airborne_without_platform(checks: RowChecks, df: pd.DataFrame, sensors: SensorSet,
+                                    platform: dict[str, np.ndarray]) -> None:
+    """A plot of an airborne radar needs its carrier's position (``platform_x/y/z``)."""
+    airborne = [s.name for s in sensors.sensors if s.is_moving]
+    if not airborne:
+        return
+    mine = df["sensor"].isin(airborne).to_numpy()
+    known = np.ones(len(df), dtype=bool)
+    for name in ("platform_x", "platform_y", "platform_z"):
+        known &= np.isfinite(platform[name]) if name in platform else False
+    names = df["sensor"].to_numpy(dtype=object)
+    checks.flag(mine & ~known, reason="airborne plot without platform position", column="platform_x",
+                describe=lambda r: f"sensor {names[r]!r} is airborne: the plot needs platform_x/y/z (the carrier's "
+                                   "position)")
 
 
 def _flag_behind_earlier_chunks(
