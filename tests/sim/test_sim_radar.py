@@ -123,6 +123,21 @@ def test_clutter_count_is_poisson_and_uniform_in_area():
     assert np.abs(angle_difference_deg(clutter["azimuth_deg"], beam)).max() < 1e-9
 
 
+def test_clutter_uniform_in_range_and_azimuth_is_dense_near_the_radar():
+    """``clutter_distribution: range``: range uniform on [0, max_range] (half the plots within
+    half the range, a quarter of the area), azimuth uniform, still following the beam."""
+    scans = 100
+    result = run(scenario([], sensors=[radar(clutter_per_scan=30.0, max_range_m=200000.0,
+                                              clutter_distribution="range")], duration_s=4.0 * scans))
+    complete = result.plots[result.plots.scan < scans]
+    total = len(complete)
+    assert binomial_band((complete.range_m < 100000.0).sum(), total, 0.5)
+    assert binomial_band((complete.range_m < 20000.0).sum(), total, 0.1)  # 1 % of the area, 10 % of the plots
+    assert binomial_band((complete.azimuth_deg < 90.0).sum(), total, 0.25)
+    beam = beam_azimuth_deg(result.sensors["radar1"], result.plots["time"])
+    assert np.abs(angle_difference_deg(result.plots["azimuth_deg"], beam)).max() < 1e-9
+
+
 def test_measurement_noise_has_the_configured_standard_deviations():
     sensor = radar(type="radar-3d", sigma_range_m=40.0, sigma_azimuth_deg=0.07, sigma_elevation_deg=0.2, sigma_range_rate_mps=1.5)
     result = run(scenario(ring_of_targets(40), sensors=[sensor], duration_s=200.0))

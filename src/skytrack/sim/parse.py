@@ -45,7 +45,8 @@ _SENSOR_VALUE_KEYS = (
     "sigma_elevation_deg", "sigma_range_rate_mps", "max_range_m", "min_elevation_deg",
     "p_detection", "clutter_per_scan",
 )
-_SENSOR_SIM_KEYS = ("p_mode3a", "p_mode_c", "clutter_elevation_deg", "clutter_range_rate_mps")
+_SENSOR_SIM_KEYS = ("p_mode3a", "p_mode_c", "clutter_elevation_deg", "clutter_range_rate_mps",
+                    "clutter_distribution")
 _TARGET_KEYS = (
     "id", "start_time_s", "x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m",
     "speed_mps", "heading_deg", "transponder", "mode3a", "icao24", "legs",
@@ -151,6 +152,7 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
         p_mode_c=f.number("p_mode_c", 1.0, ge=0.0, le=1.0),
         clutter_elevation_deg=f.interval("clutter_elevation_deg", (min_el, min(min_el + 10.0, 90.0)), ge=-90.0, le=90.0),
         clutter_range_rate_mps=f.interval("clutter_range_rate_mps", (-300.0, 300.0)),
+        clutter_distribution=f.string("clutter_distribution", "area", choices=("area", "range")),
     )
     return sensor, sim
 

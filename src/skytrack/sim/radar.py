@@ -202,7 +202,9 @@ def _secondary(params: RadarSimParams, traj: TrajectorySet, target: np.ndarray, 
 
 
 def clutter_plots(sensor: Sensor, params: RadarSimParams, duration_s: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """False plots: Poisson count per revolution, uniform in area over the coverage disc."""
+    """False plots: Poisson count per revolution, uniform in area over the coverage disc, or
+    uniform in range and azimuth (``params.clutter_distribution == "range"``: dense near the
+    radar, the way a real radar's false plots are)."""
     period, phase = sensor.scan_period_s, sensor.scan_phase_s
     first, last = math.floor(-phase / period), math.floor((duration_s - phase) / period)
     per_scan = rng.poisson(sensor.clutter_per_scan, last - first + 1)
@@ -212,7 +214,7 @@ def clutter_plots(sensor: Sensor, params: RadarSimParams, duration_s: float, rng
     time = phase + period * (revolution + draws[:, 1])
     columns = {
         "time": time,
-        "range_m": sensor.max_range_m * np.sqrt(draws[:, 0]),
+        "range_m": sensor.max_range_m * (draws[:, 0] if params.clutter_distribution == "range" else np.sqrt(draws[:, 0])),
         "azimuth_deg": 360.0 * draws[:, 1],
         "scan": (revolution - first).astype(np.int64),
         "elevation_deg": np.full(n, np.nan),

@@ -63,6 +63,8 @@ Simulation-only keys (not written to sensors.json):
 ``clutter_elevation_deg`` [low, high] elevation of false plots of a radar-3d
                           (default [min_elevation_deg, min_elevation_deg + 10])
 ``clutter_range_rate_mps`` [low, high] range rate of false plots (default [-300, 300])
+``clutter_distribution``  ``area`` (default: uniform over the coverage disc) or ``range`` (uniform
+                          in range and azimuth, dense near the radar as a real radar's)
 
 Coverage: slant range <= max_range_m, elevation in the sensor's frame >= min_elevation_deg,
 and ground distance within the 4/3-Earth radar horizon of sensor and target heights.

@@ -93,6 +93,9 @@ class RadarSimParams:
     p_mode_c: float = 1.0
     clutter_elevation_deg: tuple[float, float] = (0.0, 10.0)
     clutter_range_rate_mps: tuple[float, float] = (-300.0, 300.0)
+    clutter_distribution: str = "area"
+    """"area": false plots uniform over the coverage disc; "range": uniform in range and azimuth,
+    so dense near the radar, as a real radar's are"""
 
 
 @dataclass(frozen=True)
