@@ -270,3 +270,24 @@ def test_nees_band_spec004_tv19(n, dim, band):
     lo, hi = nees_band(n, dim)
     assert lo == pytest.approx(band[0], abs=2e-6)
     assert hi == pytest.approx(band[1], abs=2e-6)
+
+
+def test_manoeuvring_marks_the_turn_and_the_minute_after_it():
+    """Object 0 flies straight, turns at 10 m/s^2 from t = 100 to 112 s, then flies straight;
+    object 1 flies straight: the samples from 100 s to 168 s of object 0 (last hard step at
+    112 s, plus less than 60 s) are manoeuvring, nothing else. Input order does not matter."""
+    from skytrack.analysis.metrics import manoeuvring
+
+    t = np.r_[np.arange(0, 300, 4.0), np.arange(0, 100, 4.0)]
+    obj = np.r_[np.zeros(75, int), np.ones(25, int)]
+    v = np.zeros((100, 2))
+    v[:, 0] = 200.0
+    turn = (obj == 0) & (t >= 100) & (t <= 112)
+    v[turn, 1] = (t[turn] - 96) * 10.0
+    v[(obj == 0) & (t > 112), 1] = 160.0
+    flags = manoeuvring(obj, t, v)
+    expected = (obj == 0) & (t >= 100) & (t <= 168)
+    np.testing.assert_array_equal(flags, expected)
+    shuffle = np.random.default_rng(1).permutation(100)
+    np.testing.assert_array_equal(manoeuvring(obj[shuffle], t[shuffle], v[shuffle]), expected[shuffle])
+    assert manoeuvring(obj[:0], t[:0], v[:0]).size == 0

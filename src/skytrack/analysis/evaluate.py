@@ -52,7 +52,16 @@ from skytrack.analysis.checks import _py, _require_columns, _require_finite, _re
 from skytrack.analysis.covariances import _covariances
 from skytrack.analysis.evaluation import UNITS_NOTE, Evaluation  # noqa: F401 - UNITS_NOTE re-exported
 from skytrack.analysis.instants import _steps_for_times, infer_output_times
-from skytrack.analysis.metrics import cutoff_matching, nees, nees_band, rmse, set_metrics_stacked
+from skytrack.analysis.metrics import (
+    MANOEUVRE_ACCELERATION_MPS2,
+    MANOEUVRE_AFTERMATH_S,
+    cutoff_matching,
+    manoeuvring,
+    nees,
+    nees_band,
+    rmse,
+    set_metrics_stacked,
+)
 from skytrack.analysis.truth import (
     DEFAULT_COVERAGE_S,
     _first_visible_time,
@@ -211,6 +220,9 @@ def evaluate(
     tracking_dim = 3 if "z" in tracks.columns and len(tracks) and tracks["z"].notna().all() else 2
     nees_info = _nees_summary(tracks.iloc[ei], pos_err, vel_err, axes, vel_axes, has_velocity, tracking_dim)
     assignments["nees"] = nees_info.pop("_values")
+    if has_velocity:
+        turning = manoeuvring(vt_target, grid[vt_step], vt_vel)[ti]
+        nees_info.update(_nees_split(assignments["nees"].to_numpy(dtype=float), turning))
 
     per_target = _per_target(prepared, grid, vt_target, vt_step, assigned_track, track_ids, ti, ei, track_code,
                              pos_sq, vel_sq, vel_ok, time_tolerance_s, window_start)
@@ -280,6 +292,18 @@ def _nees_summary(rows: pd.DataFrame, pos_err, vel_err, axes, vel_axes, has_velo
         _values=values,
     )
     return info
+
+
+def _nees_split(values: np.ndarray, turning: np.ndarray) -> dict[str, Any]:
+    """Mean NEES on straight flight and in or after manoeuvres (:func:`manoeuvring`)."""
+    valid = np.isfinite(values)
+    quiet, turn = valid & ~turning, valid & turning
+    return {
+        "quiet_mean": float(values[quiet].mean()) if quiet.any() else None, "quiet_n": int(quiet.sum()),
+        "manoeuvre_mean": float(values[turn].mean()) if turn.any() else None, "manoeuvre_n": int(turn.sum()),
+        "manoeuvre_rule": f"truth acceleration above {MANOEUVRE_ACCELERATION_MPS2:g} m/s^2 within the last "
+                          f"{MANOEUVRE_AFTERMATH_S:g} s",
+    }
 
 
 def _per_target(prepared, grid, vt_target, vt_step, assigned_track, track_ids, ti, ei, track_code,

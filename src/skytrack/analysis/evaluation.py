@@ -99,6 +99,13 @@ class Evaluation:
             out["per_target"] = _records(self.per_target)
         return _jsonable(out)
 
+    def _nees_split_rows(self, num) -> list[tuple[str, str, str]]:
+        """NEES on straight flight and in or after manoeuvres, when the evaluation split it."""
+        if self.nees.get("quiet_n") is None:
+            return []
+        return [("  straight flight / in or after manoeuvres",
+                 f"{num(self.nees['quiet_mean'], '{:.2f}')} / {num(self.nees['manoeuvre_mean'], '{:.2f}')}", "")]
+
     def summary_rows(self) -> list[tuple[str, str, str]]:
         """(metric, value, unit) string rows for a table (e.g. ``rich.table.Table.add_row``)."""
         s = self.summary
@@ -125,6 +132,7 @@ class Evaluation:
                 f"{num(self.nees['band_95'][0], '{:.2f}')}..{num(self.nees['band_95'][1], '{:.2f}')})",
                 "",
             ),
+            *self._nees_split_rows(num),
             ("continuity (mean over objects)", num(s["continuity_mean"], "{:.3f}"), ""),
             ("track breaks", str(s["track_breaks"]), ""),
             ("track swaps", f"{s['track_swaps']} ({s['n_swapped_tracks']} tracks)", ""),

@@ -384,3 +384,36 @@ def nees_band(n_samples: int, dimension: int, confidence: float = 0.95) -> tuple
     tail = 0.5 * (1.0 - confidence)
     dof = n_samples * dimension
     return float(chi2.ppf(tail, dof) / n_samples), float(chi2.ppf(1.0 - tail, dof) / n_samples)
+
+
+#: a truth object manoeuvres when its acceleration exceeds this (m/s^2) ...
+MANOEUVRE_ACCELERATION_MPS2 = 0.5
+#: ... and its filter still recovers for this long afterwards (s)
+MANOEUVRE_AFTERMATH_S = 60.0
+
+
+def manoeuvring(target: np.ndarray, time: np.ndarray, velocity: np.ndarray,
+                threshold_mps2: float = MANOEUVRE_ACCELERATION_MPS2,
+                aftermath_s: float = MANOEUVRE_AFTERMATH_S) -> np.ndarray:
+    """Whether each truth sample (object ``target`` at ``time`` with ``velocity`` [n, d]) is in a
+    manoeuvre or within ``aftermath_s`` after one: the acceleration between consecutive samples
+    of the object exceeded ``threshold_mps2`` at some time in (t - aftermath_s, t].
+
+    NEES is split on this: a filter may be consistent on straight flight and not through turns.
+    """
+    count = len(time)
+    order = np.lexsort((time, target))
+    t, obj, v = time[order], target[order], velocity[order]
+    same = np.r_[False, obj[1:] == obj[:-1]]
+    dt = np.r_[np.inf, np.diff(t)]
+    accel = np.r_[0.0, np.linalg.norm(np.diff(v, axis=0), axis=1)] / dt
+    hard = same & (np.nan_to_num(accel) > threshold_mps2)
+    # for every sample, the latest hard sample of the same object at or before it
+    position = np.arange(count)
+    latest = np.maximum.accumulate(np.where(hard, position, -1)) if count else position
+    starts = np.flatnonzero(~same)  # where each object's samples begin
+    start = starts[np.searchsorted(starts, position, side="right") - 1] if count else position
+    recent = (latest >= start) & (t - t[np.maximum(latest, 0)] < aftermath_s)
+    result = np.zeros(count, dtype=bool)
+    result[order] = recent
+    return result
