@@ -99,6 +99,25 @@ def test_gzip_and_quoted_text_stream_too(tmp_path, sensor_set):
     pd.testing.assert_frame_equal(pd.concat(chunks, ignore_index=True), read_plots(path, sensor_set))
 
 
+@pytest.mark.parametrize("damage", ["cut", "cut_header", "flipped", "trailing"])
+def test_damaged_gzip_stream_is_a_located_error(tmp_path, sensor_set, damage):
+    # fuzz suite: EOFError / zlib.error / BadGzipFile from Python's gzip escaped as tracebacks
+    packed = bytearray(gzip.compress(make_plots(300, seed=2).to_csv(index=False).encode(), mtime=0))
+    if damage == "cut":
+        del packed[len(packed) // 2:]
+    elif damage == "cut_header":
+        del packed[30:]
+    elif damage == "flipped":
+        packed[len(packed) // 3] ^= 0xFF
+    else:
+        packed += b"garbage"
+    path = tmp_path / "plots.csv.gz"
+    path.write_bytes(bytes(packed))
+    with pytest.raises(InputError) as info:
+        _chunked(path, 64, sensor_set)
+    assert str(info.value).startswith(f"{path}: cannot read ") and "\n" not in str(info.value)
+
+
 @pytest.mark.parametrize("row", [0, 127, 128, 129, 700, 999])
 @pytest.mark.parametrize("chunk_rows", [128, 5000])
 def test_strict_error_names_the_row_and_line_of_the_whole_file(tmp_path, row, chunk_rows):

@@ -129,7 +129,9 @@ CASES = [
     (["sensors", 1, "sigma_azimuth_deg"], "0.1", f'{S1}: sigma_azimuth_deg must be a number, got "0.1"'),
     (["sensors", 1, "sigma_elevation_deg"], -0.2, f"{S1}: sigma_elevation_deg must be in (0, 45], got -0.2"),
     (["sensors", 0, "sigma_range_rate_mps"], -1, f"{S0}: sigma_range_rate_mps must be in (0, 1e+04], got -1"),
-    (["sensors", 0, "scan_period_s"], 0, f"{S0}: scan_period_s must be in (0, 3600], got 0"),
+    (["sensors", 0, "scan_period_s"], 0, f"{S0}: scan_period_s must be in [0.001, 3600], got 0"),
+    # fuzz suite: a denormal period passed the old (0, 3600] rule and overflowed the tracker's output clock
+    (["sensors", 0, "scan_period_s"], 1e-320, f"{S0}: scan_period_s must be in [0.001, 3600], got 9.99989e-321"),
     (["sensors", 0, "p_detection"], 1.2, f"{S0}: p_detection must be in [0, 1], got 1.2"),
     (["sensors", 0, "clutter_per_scan"], -0.5, f"{S0}: clutter_per_scan must be in [0, 1e+07], got -0.5"),
     (["sensors", 0, "max_range_m"], 0, f"{S0}: max_range_m must be in (0, 1e+07], got 0"),

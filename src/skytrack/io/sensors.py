@@ -44,8 +44,8 @@ _RULES: dict[str, tuple[Any, str]] = {
     "lat": (lambda v: -90 <= v <= 90, "must be in [-90, 90]"),
     "lon": (lambda v: -180 <= v <= 180, "must be in [-180, 180]"),
     # upper limits: far beyond any surveillance sensor, below what breaks the arithmetic
-    # (a sigma of 1e300 overflowed the covariance)
-    "scan_period_s": (lambda v: 0 < v <= 3600, "must be in (0, 3600]"),
+    # (a sigma of 1e300 overflowed the covariance, a scan period of 1e-320 s the output clock)
+    "scan_period_s": (lambda v: 1e-3 <= v <= 3600, "must be in [0.001, 3600]"),
     "sigma_range_m": (lambda v: 0 < v <= 1e5, "must be in (0, 1e+05]"),
     "sigma_azimuth_deg": (lambda v: 0 < v <= 45, "must be in (0, 45]"),
     "sigma_elevation_deg": (lambda v: 0 < v <= 45, "must be in (0, 45]"),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import gzip
+import zlib
 import io
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -67,6 +68,10 @@ def _open_text(path: Path) -> io.TextIOBase:
     if path.name.lower().endswith(".gz"):
         return gzip.open(path, "rt", encoding="utf-8-sig", newline="")
     return open(path, encoding="utf-8-sig", newline="")  # pyarrow skips a BOM too
+
+
+#: what Python's gzip module raises on a damaged or cut .gz stream (BadGzipFile is an OSError)
+_GZIP_ERRORS = (OSError, EOFError, zlib.error)
 
 
 def _open_binary(path: Path):
@@ -325,7 +330,7 @@ def _csv_header(path: Path) -> list[str]:
             for record in csv.reader(stream):
                 if record:
                     return record
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+    except (*_GZIP_ERRORS, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read the CSV header ({exc})", file=str(path)) from None
     raise InputError("empty CSV file (no header line)", file=str(path))
 
@@ -360,8 +365,11 @@ _MIN_BLOCK_BYTES = 1 << 20
 _MAX_BLOCK_BYTES = 4 << 20
 def _csv_block_bytes(path: Path, chunk_rows: int) -> int:
     """A reader block of about ``chunk_rows`` lines, from the line length at the top of the file."""
-    with _open_binary(path) as stream:
-        sample = stream.read(1 << 16)
+    try:
+        with _open_binary(path) as stream:
+            sample = stream.read(1 << 16)
+    except _GZIP_ERRORS as exc:
+        raise InputError(f"cannot read as CSV ({_reason(exc)})", file=str(path)) from None
     line_bytes = max(len(sample) / max(sample.count(b"\n"), 1), 1.0)
     return int(min(max(chunk_rows * line_bytes, _MIN_BLOCK_BYTES), _MAX_BLOCK_BYTES))
 
