@@ -254,6 +254,20 @@ def test_a_long_gap_is_not_walked_a_window_at_a_time(gap_s):
     assert tracker.stats["windows"] < 500
 
 
+def test_many_lone_plots_far_apart_are_not_walked_in_full_steps():
+    """Fuzz suite: 300 plots 1e9 times slower (1e8 s apart) took 25 s, each lone plot's
+    tentative track making the tracker walk a full 4096-window step before the next gap was
+    skipped; steps now start small after an idle gap."""
+    import time
+
+    result = simulate(load_scenario("crossing"))
+    plots = result.plots.iloc[:300].copy()
+    plots["time"] *= 1e9
+    started = time.perf_counter()
+    Tracker(result.sensors, TrackerConfig()).run(plots)
+    assert time.perf_counter() - started < 5.0
+
+
 def test_times_beyond_the_trackers_range_are_refused():
     result = simulate(load_scenario("crossing"))
     plots = result.plots.iloc[:50].copy()

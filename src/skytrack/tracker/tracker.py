@@ -33,6 +33,8 @@ __all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker"]
 
 #: windows processed per schedule call; between calls an empty tracker skips idle gaps
 WINDOWS_PER_STEP = 4096
+#: windows of the first step after an idle gap; steps double up to WINDOWS_PER_STEP while tracks live
+FIRST_WINDOWS_PER_STEP = 16
 
 
 class Tracker:
@@ -154,10 +156,14 @@ class Tracker:
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
+        step = FIRST_WINDOWS_PER_STEP
         while True:
             if len(self.bank) == 0 and len(self.pending):
                 self.schedule.skip_idle(float(self.pending.time.min()))
-            order, windows, leftover = self.schedule.complete_windows(self.pending, final, WINDOWS_PER_STEP)
+                # a lone plot's tentative track dies within a few windows: a small step lets the
+                # next skip_idle jump the gap (plots 1e8 s apart took 80 ms each in 4096-window steps)
+                step = FIRST_WINDOWS_PER_STEP
+            order, windows, leftover = self.schedule.complete_windows(self.pending, final, step)
             if not windows:
                 return
             pending, converted = self.pending.take(order), self.pending_converted.take(order)
@@ -172,8 +178,9 @@ class Tracker:
                 self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
                 self.last_window_end = max(self.last_window_end, end)
             self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
-            if len(windows) < WINDOWS_PER_STEP:
+            if len(windows) < step:
                 return
+            step = min(2 * step, WINDOWS_PER_STEP)
 
     # ------------------------------------------------------------------ output
     def _emit_until(self, limit: float) -> None:
