@@ -5,7 +5,7 @@ Validation: ``format_version`` is version 1 (written ``"1"``, ``1``, ``"1.0"`` o
 ``origin`` has ``lat`` in [-90, 90], ``lon`` in [-180, 180] and a finite ``alt_m``; each
 sensor has a unique non-empty ``name`` and a ``type`` in ``SENSOR_TYPES``; numbers are
 numbers (not text, not booleans) and finite, within plausibility limits far beyond any
-surveillance sensor (``_RULES``: e.g. ``0 < sigma_range_m <= 1e5``, ``0 < scan_period_s <=
+surveillance sensor (``_RULES``: e.g. ``0 < sigma_range_m <= 1e5``, ``0.001 <= scan_period_s <=
 3600``, ``0 <= p_detection <= 1``); radars have
 ``sigma_range_m`` and ``sigma_azimuth_deg``, a ``radar-3d`` also ``sigma_elevation_deg``,
 ground radars (they rotate) ``scan_period_s``;
