@@ -209,3 +209,22 @@ def test_report_text_lists_reasons_and_examples():
     assert text.splitlines()[-1] == "  warning: something converted"
     assert isinstance(report.skipped["azimuth_deg outside [0, 360)"], SkippedRows)
     assert not report.ok
+
+
+def test_parquet_text_and_names_that_are_not_utf8_are_located_errors(tmp_path):
+    """Fuzz suite: a damaged name raised UnicodeDecodeError, damaged text an ArrowException."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from skytrack.io.tables import count_rows, iter_parquet_tables
+
+    good = tmp_path / "good.parquet"
+    pq.write_table(pa.table({"sensQr": ["abcQd"] * 3}), good, store_schema=False, use_dictionary=False,
+                   compression="none", write_statistics=False)
+    for name, marker, damaged in [("name.parquet", b"sensQr", b"sens\xffr"), ("text.parquet", b"abcQd", b"abc\xffd")]:
+        path = tmp_path / name
+        path.write_bytes(good.read_bytes().replace(marker, damaged))
+        with pytest.raises(InputError) as info:
+            count_rows(path)
+            list(iter_parquet_tables(path, 2))
+        assert str(info.value).startswith(f"{path}: not a readable Parquet file (")

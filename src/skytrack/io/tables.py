@@ -70,8 +70,9 @@ def _open_text(path: Path) -> io.TextIOBase:
     return open(path, encoding="utf-8-sig", newline="")  # pyarrow skips a BOM too
 
 
-#: what Python's gzip module raises on a damaged or cut .gz stream (BadGzipFile is an OSError)
+#: raised on a damaged .gz stream (BadGzipFile is an OSError) and on a damaged Parquet file (non-UTF-8 names)
 _GZIP_ERRORS = (OSError, EOFError, zlib.error)
+_PARQUET_ERRORS = (pa.ArrowException, OSError, UnicodeDecodeError)
 
 
 def _open_binary(path: Path):
@@ -263,7 +264,7 @@ def arrow_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource | None 
 def _read_parquet(path: Path) -> pd.DataFrame:
     try:
         return arrow_to_frame(pq.read_table(path, page_checksum_verification=True))
-    except (pa.ArrowException, OSError) as exc:
+    except _PARQUET_ERRORS as exc:
         raise _parquet_error(path, exc) from None
 
 
@@ -289,9 +290,12 @@ def iter_parquet_tables(
         for batch in parquet.iter_batches(batch_size=chunk_rows):
             source = TableSource(display=str(path), path=path, row_offset=offset, dictionary_text=text)
             _check_unique_columns(batch.schema.names, source)
+            batch.validate(full=True)  # a damaged page without checksum may hold text that is not UTF-8
             yield batch, source
             offset += batch.num_rows
-    except (pa.ArrowException, OSError) as exc:
+        if offset != parquet.metadata.num_rows:  # damaged row-group metadata: rows would vanish silently
+            raise InputError(f"the Parquet file is damaged: {offset} of {parquet.metadata.num_rows} rows read", file=str(path))
+    except _PARQUET_ERRORS as exc:
         raise _parquet_error(path, exc) from None
 
 
@@ -320,7 +324,7 @@ def count_rows(path: str | Path) -> int | None:
     _check_exists(path)
     try:
         return pq.ParquetFile(path).metadata.num_rows
-    except (pa.ArrowException, OSError) as exc:
+    except _PARQUET_ERRORS as exc:
         raise _parquet_error(path, exc) from None
 
 
