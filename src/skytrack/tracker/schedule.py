@@ -159,12 +159,18 @@ class Schedule:
     def window_start(self, s, index):
         return np.nan_to_num(self.phase[s]) + index * self.window_length[s]
 
-    def skip_idle(self, until: float) -> None:
+    def skip_idle(self, until: float) -> bool:
         """Move every sensor's next window to the one holding time ``until``: when no track is
         alive and no plot comes before ``until``, the windows before it have nothing to do (a
-        gap of days in a recording is not walked a scan at a time)."""
+        gap of days in a recording is not walked a scan at a time).  Returns whether a gap was
+        skipped."""
+        skipped = False
         for s in np.flatnonzero(self.seen):
-            self.next_window[s] = max(self.next_window[s], int(self.window_index(s, until)))
+            target = int(self.window_index(s, until))
+            if target > self.next_window[s]:
+                self.next_window[s] = target
+                skipped = True
+        return skipped
 
     def complete_windows(self, pending: PlotBatch, final: bool,
                          max_windows: int | None = None) -> tuple[np.ndarray, list, np.ndarray]:

@@ -156,10 +156,10 @@ class Tracker:
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
-        step = FIRST_WINDOWS_PER_STEP
+        # every step sorts the pending plots again: small steps only right after an idle gap
+        step = WINDOWS_PER_STEP
         while True:
-            if len(self.bank) == 0 and len(self.pending):
-                self.schedule.skip_idle(float(self.pending.time.min()))
+            if len(self.bank) == 0 and len(self.pending) and self.schedule.skip_idle(float(self.pending.time.min())):
                 # a lone plot's tentative track dies within a few windows: a small step lets the
                 # next skip_idle jump the gap (plots 1e8 s apart took 80 ms each in 4096-window steps)
                 step = FIRST_WINDOWS_PER_STEP
