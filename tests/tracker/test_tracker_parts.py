@@ -236,17 +236,14 @@ def test_plot_batch_parses_identity_codes_from_chunked_arrow_columns():
 def test_a_long_gap_is_not_walked_a_window_at_a_time(gap_s):
     """A recording with a gap of days (or an absurd 1e11 s) tracks in the time of one without:
     once no track is alive the windows and output instants of the gap are skipped (1e6 s took
-    16 s, 1e8 s would have taken half an hour); the tracks are those of the two halves."""
-    import time
-
+    16 s, 1e8 s would have taken half an hour); the tracks are those of the two halves.  The
+    work is counted in windows, not timed (a fresh checkout also compiles the kernels here)."""
     result = simulate(load_scenario("crossing"))
     plots = result.plots.copy()
     half = len(plots) // 2
     plots.loc[half:, "time"] += gap_s
-    started = time.perf_counter()
     tracker = Tracker(result.sensors, TrackerConfig())
     tracks = tracker.run(plots)
-    assert time.perf_counter() - started < 5.0
     reference = Tracker(result.sensors, TrackerConfig()).run(plots.iloc[:half])
     first_half = tracks[tracks["time"] < plots["time"].iloc[half - 1] + 100.0]
     assert len(first_half) >= len(reference) > 0
@@ -257,15 +254,14 @@ def test_a_long_gap_is_not_walked_a_window_at_a_time(gap_s):
 def test_many_lone_plots_far_apart_are_not_walked_in_full_steps():
     """Fuzz suite: 300 plots 1e9 times slower (1e8 s apart) took 25 s, each lone plot's
     tentative track making the tracker walk a full 4096-window step before the next gap was
-    skipped; steps now start small after an idle gap."""
-    import time
-
+    skipped; steps now start small after an idle gap.  Counted in windows processed (about 3 per
+    plot), not timed: a fresh checkout also compiles the kernels here."""
     result = simulate(load_scenario("crossing"))
     plots = result.plots.iloc[:300].copy()
     plots["time"] *= 1e9
-    started = time.perf_counter()
-    Tracker(result.sensors, TrackerConfig()).run(plots)
-    assert time.perf_counter() - started < 5.0
+    tracker = Tracker(result.sensors, TrackerConfig())
+    tracker.run(plots)
+    assert tracker.stats["windows"] < 300 * 16  # a full first step per plot walked 300 x 4096
 
 
 def test_times_beyond_the_trackers_range_are_refused():
