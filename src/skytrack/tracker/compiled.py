@@ -62,28 +62,35 @@ class CompiledStages:
         self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
 
     def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used) -> None:
-        bank = self.bank
-        dim = self.dim
-        sensor = self.sensors.sensors[s]
-        schedule = self.schedule
-        storage, columns = bank.storage, bank.column_storage
-        psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
-        margin_s = schedule.time_margin(s)
-        replace_height = not sensor.is_3d
-        two_point = self.config.initiation.method == "two-point"
-        miss = self.scorer.gate(dim + 1)
+        storage, columns = self.bank.storage, self.bank.column_storage
+        _, psi, _, _, q_big, *_ = self._switch_arrays()
         candidates, manoeuvre_hits = stages_cv(
             self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P, columns["t"],
-            columns["alt_m"], psi, q_big, plots.time, converted.position, converted.covariance, plots.mode_c_m,
-            plots.range_m, plots.azimuth, self.fused_q, dim, self.search_scales[s], margin_s, self.scorer.gate(dim),
-            replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M,
-            sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2,
-            self._rotation[s], self._origin[s], miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point,
-            nis_avg, filter_updates, columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"],
-            columns["mode3a"], columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+            columns["alt_m"], psi, q_big, *self._stage_arguments(s, plots, converted),
         )
         self.stats["candidate_pairs"] += candidates
         self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
+
+    def _stage_arguments(self, s, plots: PlotBatch, converted: ConvertedPlots) -> tuple:
+        """The arguments that :func:`~skytrack.tracker.stage_kernel.stage_cv` and
+        :func:`~skytrack.tracker.stage_kernel.stages_cv` share, from ``plot_time`` on: the window's
+        plots, the model, the gate and search, the sensor's geometry, the assignment, the psi
+        switch and the bank columns the update writes."""
+        dim = self.dim
+        sensor = self.sensors.sensors[s]
+        columns = self.bank.column_storage
+        psi_enabled, _, nis_avg, filter_updates, _, on, off, memory = self._switch_arrays()
+        replace_height = not sensor.is_3d
+        return (
+            plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
+            self.fused_q, dim, self.search_scales[s], self.schedule.time_margin(s), self.scorer.gate(dim),
+            replace_height, float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M,
+            sensor.sigma_range_m**2, sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2,
+            self._rotation[s], self._origin[s], self.scorer.gate(dim + 1), MAX_DENSE_CLUSTER, psi_enabled, on, off,
+            memory, self.config.initiation.method == "two-point", nis_avg, filter_updates, columns["n_updates"],
+            columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"], columns["icao24"],
+            columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+        )
 
     def _switch_arrays(self):
         """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""
@@ -150,26 +157,11 @@ class CompiledStages:
 
     def _associate_fused(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
         """:meth:`_associate` in one compiled call (:func:`skytrack.tracker.stage_kernel.stage_cv`)."""
-        bank = self.bank
-        dim = self.dim
-        sensor = self.sensors.sensors[s]
-        schedule = self.schedule
-        storage, columns = bank.storage, bank.column_storage
-        psi_enabled, psi, nis_avg, filter_updates, q_big, on, off, memory = self._switch_arrays()
-        margin_s = schedule.time_margin(s)
-        replace_height = not sensor.is_3d
-        two_point = self.config.initiation.method == "two-point"
-        miss = self.scorer.gate(dim + 1)
+        storage, columns = self.bank.storage, self.bank.column_storage
+        _, psi, _, _, q_big, *_ = self._switch_arrays()
         rows, plot_rows, candidates = stage_cv(
             tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], psi, q_big, manoeuvre, t_ref,
-            plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.range_m, plots.azimuth,
-            self.fused_q, dim, self.search_scales[s], margin_s,
-            self.scorer.gate(dim), replace_height,
-            float(sensor.alt_m or 0.0) if replace_height else 0.0, EARTH_RADIUS_M, sensor.sigma_range_m**2,
-            sensor.sigma_azimuth_rad**2, self.config.geometry.mode_c_sigma_m**2, self._rotation[s], self._origin[s],
-            miss, MAX_DENSE_CLUSTER, psi_enabled, on, off, memory, two_point, nis_avg, filter_updates,
-            columns["n_updates"], columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"],
-            columns["icao24"], columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+            *self._stage_arguments(s, plots, converted),
         )
         self.stats["candidate_pairs"] += candidates
         if manoeuvre:
