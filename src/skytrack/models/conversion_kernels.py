@@ -49,14 +49,8 @@ def place_2d(r, az, height, sensor_alt, earth, var_r, var_az, var_h, rot, origin
     j00, j01, j02 = dground_dr * sin_az, ground * cos_az, dground_db * sin_az
     j10, j11, j12 = dground_dr * cos_az, -ground * sin_az, dground_db * cos_az
     j20, j22 = -b * sin_phi * dphi_dr, cos_phi - b * sin_phi * dphi_db
-    _write(x, y, z,
-           j00 * j00 * var_r + j01 * j01 * var_az + j02 * j02 * var_h,
-           j00 * j10 * var_r + j01 * j11 * var_az + j02 * j12 * var_h,
-           j00 * j20 * var_r + j02 * j22 * var_h,
-           j10 * j10 * var_r + j11 * j11 * var_az + j12 * j12 * var_h,
-           j10 * j20 * var_r + j12 * j22 * var_h,
-           j20 * j20 * var_r + j22 * j22 * var_h,
-           rot, origin, pos_out, cov_out)
+    _write_propagated(x, y, z, j00, j01, j02, j10, j11, j12, j20, j22, var_r, var_az, var_h, rot, origin, pos_out,
+                      cov_out)
     return consistent
 
 
@@ -88,15 +82,23 @@ def convert_3d_batch(r, az, el, var_r, var_az, var_el, rot, origin):
         j00, j01, j02 = cos_el * sin_az, rk * cos_el * cos_az, -rk * sin_el * sin_az
         j10, j11, j12 = cos_el * cos_az, -rk * cos_el * sin_az, -rk * sin_el * cos_az
         j20, j22 = sin_el, rk * cos_el
-        _write(ground * sin_az, ground * cos_az, rk * sin_el,
-               j00 * j00 * var_r + j01 * j01 * var_az + j02 * j02 * var_el,
-               j00 * j10 * var_r + j01 * j11 * var_az + j02 * j12 * var_el,
-               j00 * j20 * var_r + j02 * j22 * var_el,
-               j10 * j10 * var_r + j11 * j11 * var_az + j12 * j12 * var_el,
-               j10 * j20 * var_r + j12 * j22 * var_el,
-               j20 * j20 * var_r + j22 * j22 * var_el,
-               rot, origin, position[k], covariance[k])
+        _write_propagated(ground * sin_az, ground * cos_az, rk * sin_el, j00, j01, j02, j10, j11, j12, j20, j22,
+                          var_r, var_az, var_el, rot, origin, position[k], covariance[k])
     return position, covariance, consistent
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _write_propagated(x, y, z, j00, j01, j02, j10, j11, j12, j20, j22, v0, v1, v2, rot, origin, pos_out, cov_out):
+    """:func:`_write` of the covariance ``J diag(v0, v1, v2) J^T`` of a Jacobian with ``J[2, 1] = 0``
+    (range, azimuth and a third measured or assumed coordinate)."""
+    _write(x, y, z,
+           j00 * j00 * v0 + j01 * j01 * v1 + j02 * j02 * v2,
+           j00 * j10 * v0 + j01 * j11 * v1 + j02 * j12 * v2,
+           j00 * j20 * v0 + j02 * j22 * v2,
+           j10 * j10 * v0 + j11 * j11 * v1 + j12 * j12 * v2,
+           j10 * j20 * v0 + j12 * j22 * v2,
+           j20 * j20 * v0 + j22 * j22 * v2,
+           rot, origin, pos_out, cov_out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

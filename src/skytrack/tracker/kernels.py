@@ -60,11 +60,17 @@ def _predict_cv_row(x, P, dt, q, scale, ndim, x_out, P_out):
                 P_out[i, j + 1] += q01
                 P_out[i + 1, j] += q01
                 P_out[i + 1, j + 1] += q11
+    _symmetrise(P_out, n)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _symmetrise(M, n):
+    """Replace the upper-left ``n x n`` block of ``M`` by the mean of it and its transpose."""
     for i in range(n):
         for j in range(i + 1, n):
-            mean = 0.5 * (P_out[i, j] + P_out[j, i])
-            P_out[i, j] = mean
-            P_out[j, i] = mean
+            mean = 0.5 * (M[i, j] + M[j, i])
+            M[i, j] = mean
+            M[j, i] = mean
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -213,11 +219,7 @@ def _predict_cv_position(x, P, dt, q, scale, ndim, x_out, P_out):
             P_out[a, b] = r00 + r01 * f
             if a == b:
                 P_out[a, b] += q00
-    for a in range(ndim):
-        for b in range(a + 1, ndim):
-            mean = 0.5 * (P_out[a, b] + P_out[b, a])
-            P_out[a, b] = mean
-            P_out[b, a] = mean
+    _symmetrise(P_out, ndim)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -344,11 +346,7 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
                 for a in range(m):
                     acc += KR[i, a] * K[jj, a]
                 P_new[i, jj] = acc
-        for i in range(n):
-            for jj in range(i + 1, n):
-                mean = 0.5 * (P_new[i, jj] + P_new[jj, i])
-                P_new[i, jj] = mean
-                P_new[jj, i] = mean
+        _symmetrise(P_new, n)
         if psi_enabled:
             nis = d2[c] / m
             if manoeuvre:
