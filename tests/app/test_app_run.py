@@ -100,12 +100,18 @@ def test_a_run_without_tracks_says_why(crossing, tmp_path):
     plots = result.plots
     first_two_scans = plots[plots["time"] < plots["time"].min() + 2 * result.sensors.sensors[0].scan_period_s]
     write_plots(first_two_scans, tmp_path / "short.parquet", sensors=result.sensors)
-    summary = run_tracking(tmp_path / "short.parquet", paths["sensors"], tmp_path / "short_tracks.parquet")
+    m_of_n = TrackerConfig(track_logic="m-of-n")
+    summary = run_tracking(tmp_path / "short.parquet", paths["sensors"], tmp_path / "short_tracks.parquet", m_of_n)
     assert summary.track_rows == 0 and summary.stats["tracks_started"] > 0
     assert summary.no_tracks_reason == (
         f"{summary.stats['tracks_started']} tentative tracks started but none was confirmed by the 3-of-4 rule: a "
         "track needs plots on 3 of 4 consecutive scans (check the radars' scan_period_s against the plots' times, "
         "and the plots' units)")
+    # the track score needs more than one plot: a single scan starts tracks and confirms none
+    first_scan = plots[plots["time"] < plots["time"].min() + result.sensors.sensors[0].scan_period_s]
+    write_plots(first_scan, tmp_path / "one_scan.parquet", sensors=result.sensors)
+    scored = run_tracking(tmp_path / "one_scan.parquet", paths["sensors"], tmp_path / "one_scan_tracks.parquet")
+    assert scored.track_rows == 0 and "none reached the confirmation score" in scored.no_tracks_reason
     write_plots(plots.iloc[:0], tmp_path / "empty.parquet", sensors=result.sensors)
     empty = run_tracking(tmp_path / "empty.parquet", paths["sensors"], tmp_path / "empty_tracks.parquet")
     assert empty.no_tracks_reason == "no plot was read"

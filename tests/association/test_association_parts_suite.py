@@ -40,9 +40,24 @@ def test_scorer_gate_and_miss_cost(name):
     innovation = _innovations(rng, 300)
     pairs = Pairs(rng.integers(0, 40, 300), rng.integers(0, 60, 300))
     scorer = build_scorer(name, p_gate=0.99, max_components=3)
-    scores = scorer.score(innovation, pairs, 40)
-    np.testing.assert_array_equal(scores.inside, innovation.d2 <= chi2.ppf(0.99, 2))
+    gated = innovation.d2 <= chi2.ppf(0.99, 2)
+    if name == "llr":
+        # evidence per pair (ln P_D - ln beta_j + SSR) and ln(1 - P_D): inside the gate AND better than a miss
+        evidence = rng.uniform(5.0, 25.0, 300)
+        scores = scorer.score(innovation, pairs, 40, evidence, np.log(0.1))
+        better = innovation.loglik + evidence > np.log(0.1)
+        np.testing.assert_array_equal(scores.inside, gated & better)
+        assert (gated & ~better).any()
+        # the costs of a track's pairs keep their differences: -2 x the differences of the ratios
+        inside = np.flatnonzero(scores.inside)
+        first, second = inside[0], inside[np.flatnonzero(pairs.track[inside] == pairs.track[inside[0]])[-1]]
+        np.testing.assert_allclose(scores.cost[second] - scores.cost[first],
+                                   -2 * (scores.columns["gain"][second] - scores.columns["gain"][first]))
+    else:
+        scores = scorer.score(innovation, pairs, 40)
+        np.testing.assert_array_equal(scores.inside, gated)
     assert 0 < scores.inside.sum() < 300
+    assert np.all(scores.cost[scores.inside] >= -1e-9)
     inside_costs = scores.cost[scores.inside]
     assert np.all(inside_costs <= scores.miss_cost[pairs.track[scores.inside]] + 1e-9)
     np.testing.assert_array_equal(scores.columns["d2"], innovation.d2)

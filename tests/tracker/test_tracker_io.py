@@ -65,7 +65,7 @@ def test_full_covariance_columns_follow_the_formats_columns(sim, radar1, targets
 
 def test_no_track_gives_an_empty_table_with_the_formats_columns(sim, radar1):
     plots = sim.radar_plots(radar1, [sim.Target("a", (30000.0, 40000.0, 8000.0), (150.0, 0.0, 0.0))],
-                            0.0, 8.0, np.random.default_rng(1))  # two plots: never confirmed
+                            0.0, 4.0, np.random.default_rng(1))  # one plot: never confirmed
     tracks = Tracker(sim.sensor_set([radar1])).run(plots)
     assert len(tracks) == 0
     assert list(tracks.columns) == FORMATS_TRACK_COLUMNS

@@ -30,7 +30,7 @@ def run(sim, radar, plots, **config):
 @pytest.mark.parametrize("m, n", [(3, 4), (2, 2), (4, 5), (1, 1)])
 def test_single_target_gives_one_track_confirmed_at_the_mth_plot(sim, radar1, target, m, n):
     plots = sim.radar_plots(radar1, [target], 0.0, T_END, np.random.default_rng(1))
-    tracks, tracker = run(sim, radar1, plots, confirm_m=m, confirm_n=n)
+    tracks, tracker = run(sim, radar1, plots, confirm_m=m, confirm_n=n, track_logic="m-of-n")
     # exactly one track, its id never changes
     assert tracks["track_id"].unique().tolist() == [1]
     assert tracker.stats["tracks_started"] == 1 and tracker.stats["tracks_confirmed"] == 1

@@ -138,18 +138,18 @@ def test_bank_append_defaults_and_keep():
 def test_bank_registered_columns_and_checkpoint_round_trip():
     kalman = KalmanFilter(constant_velocity(2, 1.0))
     bank = TrackBank(kalman)
-    bank.register_column("score", np.float64, 0.5)
+    bank.register_column("identity_score", np.float64, 0.5)
     bank.append(kalman.initiate(np.arange(8.0).reshape(2, 4), np.broadcast_to(np.eye(4), (2, 4, 4))),
-                track_id=np.array([1, 2]), score=np.array([1.5, 2.5]))
+                track_id=np.array([1, 2]), identity_score=np.array([1.5, 2.5]))
     bank.append(kalman.initiate(np.ones((1, 4)), np.eye(4)[None]), track_id=np.array([3]))
-    np.testing.assert_array_equal(bank.score, [1.5, 2.5, 0.5])
+    np.testing.assert_array_equal(bank.identity_score, [1.5, 2.5, 0.5])
     with pytest.raises(ValueError, match="exists already"):
-        bank.register_column("score", np.float64, 0.0)
+        bank.register_column("identity_score", np.float64, 0.0)
     with pytest.raises(ValueError, match="no column"):
         bank.append(kalman.initiate(np.ones((1, 4)), np.eye(4)[None]), unknown=1)
     saved = bank.to_arrays()
     other = TrackBank(kalman)
-    other.register_column("score", np.float64, 0.5)
+    other.register_column("identity_score", np.float64, 0.5)
     other.load_arrays(saved)
     for name, values in other.to_arrays().items():
         np.testing.assert_array_equal(values, saved[name])

@@ -138,6 +138,10 @@ def no_tracks_reason(summary: RunSummary, config: TrackerConfig) -> str:
     started, confirmed = stats.get("tracks_started", 0), stats.get("tracks_confirmed", 0)
     if started == 0:
         return f"none of the {summary.plots} plots started a track"
+    if confirmed == 0 and config.score.track_logic == "score":
+        return (f"{started} tentative tracks started but none reached the confirmation score: a track needs "
+                "several plots that fit its motion, as many more as the false-track rate and the clutter density "
+                "demand (check the radars' scan_period_s against the plots' times, and the plots' units)")
     if confirmed == 0:
         return (f"{started} tentative tracks started but none was confirmed by the {lifecycle.confirm_m}-of-"
                 f"{lifecycle.confirm_n} rule: a track needs plots on {lifecycle.confirm_m} of {lifecycle.confirm_n} "

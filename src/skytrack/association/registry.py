@@ -7,9 +7,9 @@ entry here; the tracker's ``association`` configuration section names them.
 from __future__ import annotations
 
 from skytrack.association.gnn import GNNAssigner
-from skytrack.association.scoring import LogLikelihoodScorer, MahalanobisScorer
+from skytrack.association.scoring import LikelihoodRatioScorer, LogLikelihoodScorer, MahalanobisScorer
 
-SCORERS = {"d2": MahalanobisScorer, "loglik": LogLikelihoodScorer}
+SCORERS = {"d2": MahalanobisScorer, "loglik": LogLikelihoodScorer, "llr": LikelihoodRatioScorer}
 ASSIGNERS = {"gnn": GNNAssigner}
 
 

@@ -8,7 +8,14 @@
   a track unassigned costs the negative log-likelihood at the gate's edge of the widest
   innovation in the window, i.e. the pair that is just inside the gate.
 
-Both report ``d2`` and ``loglik`` as per-pair diagnostic columns.
+* :class:`LikelihoodRatioScorer` (``"llr"``) — the log-likelihood ratio of "plot j from
+  track i" against "plot j false, track i missed" (:mod:`skytrack.tracker.evidence`): cost
+  ``-2 (ln N(nu; 0, S) + evidence - ln(1 - P_D))`` with ``evidence = ln P_D - ln beta_j + ln(SSR
+  ratio)`` given per pair by the tracker; same gate, and a pair worse than a miss is outside.
+  Each track's costs are shifted by its cheapest pair (the miss then costs minus that), which
+  keeps them >= 0 for the assignment and changes no choice.
+
+All report ``d2`` and ``loglik`` as per-pair diagnostic columns.
 """
 
 from __future__ import annotations
@@ -64,3 +71,20 @@ class LogLikelihoodScorer(_ChiSquareGate):
         edge = cost + 0.5 * (g - innovation.d2)  # -ln N at the gate's edge, same S
         miss = np.full(n_tracks, float(edge.max()) if len(edge) else 0.0)
         return PairScores(pairs, cost, inside, miss, columns={"d2": innovation.d2, "loglik": innovation.loglik})
+
+
+@dataclass
+class LikelihoodRatioScorer(_ChiSquareGate):
+    name = "llr"
+
+    def score(self, innovation, pairs: Pairs, n_tracks: int, evidence: np.ndarray | None = None,
+              log_miss: float = 0.0) -> PairScores:
+        """``evidence`` per pair and ``log_miss`` = ln(1 - P_D) (see the module docstring); without
+        evidence the ratio is against a unit clutter density and P_D = 1/2."""
+        gain = innovation.loglik + (0.0 if evidence is None else evidence)
+        cost = -2.0 * (gain - log_miss)
+        inside = (innovation.d2 <= self.thresholds(innovation.m)) & (cost < 0.0)
+        cheapest = np.zeros(n_tracks)
+        np.minimum.at(cheapest, pairs.track[inside], cost[inside])
+        return PairScores(pairs, cost - cheapest[pairs.track], inside, -cheapest,
+                          columns={"d2": innovation.d2, "loglik": innovation.loglik, "gain": gain})

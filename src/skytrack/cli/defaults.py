@@ -16,6 +16,5 @@ CONFIRM_M = 3
 CONFIRM_N = 4
 DELETE_MISSES = 5
 INIT = "one-point"
-DEFAULT_ALTITUDE_M = 6000.0
 #: plots per chunk of ``skytrack track`` (mirrors :data:`skytrack.app.run.DEFAULT_CHUNK_ROWS`)
 CHUNK_ROWS = 200_000

@@ -161,7 +161,7 @@ def track(
     delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = defaults.DELETE_MISSES,
     init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = defaults.INIT,
     tracking_dim: Annotated[Optional[int], typer.Option(help="2 (horizontal) or 3; default from the radars.")] = None,
-    default_altitude: Annotated[float, typer.Option(help="Altitude (m) assumed for 2-D plots without Mode C.")] = defaults.DEFAULT_ALTITUDE_M,
+    default_altitude: Annotated[Optional[float], typer.Option(help="Fixed altitude (m) for 2-D plots without Mode C (default: bounded between the radar horizon and 30 deg elevation).")] = None,
     output_interval: Annotated[Optional[float], typer.Option(help="Report tracks every N s (default: each scan of the first radar).")] = None,
     full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,

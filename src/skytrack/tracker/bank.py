@@ -34,6 +34,8 @@ STANDARD_COLUMNS: dict[str, tuple[type, object]] = {
     "mode3a": (np.int32, -1),
     "icao24": (np.int32, -1),
     "iff": (np.int8, -1),
+    "score": (np.float64, 0.0),  # track score: log-likelihood ratio (skytrack.tracker.evidence)
+    "score_max": (np.float64, 0.0),  # its largest value so far (deletion by the drop from it)
 }
 
 

@@ -54,19 +54,21 @@ class CompiledStages:
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
         expected = hit
+        plot_stage = np.full(len(plots), -1, np.int8)
         if n_tracks:
             t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
             status_now = np.where(nearby, bank.status, -1).astype(np.int8)
-            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used)
+            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage)
         self.stats["plots_assigned"] += int(plot_used.sum())
-        self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+        self._learn(s, w_start, w_end, plots, plot_stage)
+        self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
 
-    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used) -> None:
+    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage) -> None:
         storage, columns = self.bank.storage, self.bank.column_storage
         _, psi, _, _, q_big, *_ = self._switch_arrays()
         candidates, manoeuvre_hits = stages_cv(
             self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P, columns["t"],
-            columns["alt_m"], psi, q_big, *self._stage_arguments(s, plots, converted),
+            columns["alt_m"], psi, q_big, *self._stage_arguments(s, plots, converted), plot_stage,
         )
         self.stats["candidate_pairs"] += candidates
         self.stats["manoeuvre_gate_hits"] += manoeuvre_hits
@@ -75,7 +77,7 @@ class CompiledStages:
         """The arguments that :func:`~skytrack.tracker.stage_kernel.stage_cv` and
         :func:`~skytrack.tracker.stage_kernel.stages_cv` share, from ``plot_time`` on: the window's
         plots, the model, the gate and search, the sensor's geometry, the assignment, the psi
-        switch and the bank columns the update writes."""
+        switch, the bank columns the update writes and the window's evidence (:meth:`_window_evidence`)."""
         dim = self.dim
         sensor = self.sensors.sensors[s]
         columns = self.bank.column_storage
@@ -89,8 +91,24 @@ class CompiledStages:
             self._rotation[s], self._origin[s], self.scorer.gate(dim + 1), MAX_DENSE_CLUSTER, psi_enabled, on, off,
             memory, self.config.initiation.method == "two-point", nis_avg, filter_updates, columns["n_updates"],
             columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"], columns["icao24"],
-            columns["iff"], plots.mode3a, plots.mode_s, plots.iff,
+            columns["iff"], plots.mode3a, plots.mode_s, plots.iff, self._evidence[0], self.llr_cost,
+            self.scoring.log_pd[s], self.scoring.log_miss[s], self._evidence[1], columns["score"], columns["score_max"],
         )
+
+    def _window_evidence(self, s: int, plots: PlotBatch) -> None:
+        """The window's clutter density at each plot, SSR parameters and score thresholds."""
+        self._evidence = (self.scoring.plot_log_density(s, plots.range_m, plots.azimuth), *self.scoring.window(s))
+
+    def _learn(self, s: int, w_start: float, w_end: float, plots: PlotBatch, plot_stage: np.ndarray) -> None:
+        """The clutter map and code probabilities learn from the window's plots."""
+        scans = (w_end - w_start) / self.scoring.periods[s]
+        self.scoring.observe(s, plots.range_m, plots.azimuth, plots.mode3a, plots.mode_c_m, plot_stage, scans)
+
+    def _score_settings(self, s: int) -> tuple:
+        """(log_miss, score_logic, confirm_score, drop_score, delete_drop) of sensor ``s``'s window."""
+        scoring = self.scoring
+        return (scoring.log_miss[s], self.config.score.track_logic == "score", self._evidence[2], self._evidence[3],
+                scoring.delete_drop[s])
 
     def _switch_arrays(self):
         """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""
@@ -113,7 +131,7 @@ class CompiledStages:
                                float(sensor.max_range_m or 0.0), self._cover_xy, self._cover_r2, self._cover_all,
                                SECTOR_MARGIN)
 
-    def _initiate_manage_compiled(self, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
+    def _initiate_manage_compiled(self, s: int, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
                                   hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
         """Initiation, events, life cycle and compaction in one compiled call (standard columns only)."""
         bank = self.bank
@@ -130,7 +148,7 @@ class CompiledStages:
             columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
             columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
-            columns["iff"],
+            columns["iff"], columns["score"], columns["score_max"], *self._score_settings(s),
         )
         bank.size = size
         self.next_track_id += len(new)
@@ -140,14 +158,15 @@ class CompiledStages:
         self.stats["tentative_dropped"] += hopeless
         self.stats["tracks_deleted"] += lost
 
-    def _manage_compiled(self, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+    def _manage_compiled(self, s: int, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
         bank = self.bank
         cfg = self.config.lifecycle
         columns = bank.columns
         keep, misses, confirmed, hopeless, lost = record_and_manage(
             hit, expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
             bank.storage.P, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
-            columns["n_misses"], columns["last_event"], columns["confirmed_at"],
+            columns["n_misses"], columns["last_event"], columns["confirmed_at"], columns["score"],
+            columns["score_max"], *self._score_settings(s),
         )
         self.stats["misses"] += misses
         self.stats["tracks_confirmed"] += confirmed
@@ -173,8 +192,8 @@ def fused_cv_q(filter, association) -> float | None:
     """The CV process-noise PSD when the compiled stage applies to this filter and association, else None.
 
     It applies to compiled Kalman filters (plain or with the psi switch) in Joseph form on a
-    constant-velocity model with the same noise on every axis, with the d2 scorer and the GNN
-    assigner.
+    constant-velocity model with the same noise on every axis, with the d2 or llr scorer and the
+    GNN assigner.
     """
     kalman = getattr(filter, "kalman", filter)
     if not (isinstance(kalman, KalmanFilter) and kalman.compiled and kalman.form == "joseph"):
@@ -185,6 +204,6 @@ def fused_cv_q(filter, association) -> float | None:
     axis = motion.axes[0]
     if not (motion.identical_axes and type(axis) is ConstantVelocityAxis):
         return None
-    if not (association.compiled and association.scorer == "d2" and association.assigner == "gnn"):
+    if not (association.compiled and association.scorer in ("d2", "llr") and association.assigner == "gnn"):
         return None
     return float(axis.q)

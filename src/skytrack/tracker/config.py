@@ -12,6 +12,7 @@ Each section is a small dataclass that lives with its component and checks its o
 | ``lifecycle`` | :class:`~skytrack.tracker.lifecycle.LifecycleConfig` | tracker/lifecycle.py |
 | ``schedule`` | :class:`~skytrack.tracker.schedule.ScheduleConfig` | tracker/schedule.py |
 | ``output`` | :class:`~skytrack.tracker.output.OutputConfig` | tracker/output.py |
+| ``score`` | :class:`~skytrack.tracker.evidence.ScoreConfig` | tracker/evidence.py (track score, clutter map, SSR evidence) |
 
 ``TrackerConfig.from_file("tracker.yaml")`` reads the nested form (unknown sections or keys
 are errors naming them); ``TrackerConfig(confirm_m=2, model="singer", ...)`` also takes the
@@ -33,6 +34,7 @@ from pathlib import Path
 
 from skytrack.core.validate import require_non_negative, require_positive
 from skytrack.models.motion import MotionModel, constant_velocity, singer
+from skytrack.tracker.evidence import ScoreConfig
 from skytrack.tracker.initiation import InitiationConfig
 from skytrack.tracker.lifecycle import LifecycleConfig
 from skytrack.tracker.output import OutputConfig
@@ -108,7 +110,7 @@ class FilterConfig:
 SECTIONS = {
     "motion": MotionConfig, "filter": FilterConfig, "association": AssociationConfig,
     "geometry": GeometryConfig, "initiation": InitiationConfig, "lifecycle": LifecycleConfig,
-    "schedule": ScheduleConfig, "output": OutputConfig,
+    "schedule": ScheduleConfig, "output": OutputConfig, "score": ScoreConfig,
 }
 #: flat name -> (section, field): the command-line vocabulary
 FLAT_NAMES: dict[str, tuple[str, str]] = {
@@ -129,9 +131,10 @@ class TrackerConfig:
                  association: AssociationConfig | None = None, geometry: GeometryConfig | None = None,
                  initiation: InitiationConfig | None = None, lifecycle: LifecycleConfig | None = None,
                  schedule: ScheduleConfig | None = None, output: OutputConfig | None = None,
-                 extra: dict | None = None, **flat) -> None:
+                 score: ScoreConfig | None = None, extra: dict | None = None, **flat) -> None:
         given = {"motion": motion, "filter": filter, "association": association, "geometry": geometry,
-                 "initiation": initiation, "lifecycle": lifecycle, "schedule": schedule, "output": output}
+                 "initiation": initiation, "lifecycle": lifecycle, "schedule": schedule, "output": output,
+                 "score": score}
         by_section: dict[str, dict] = {name: {} for name in SECTIONS}
         for name, value in flat.items():
             if name not in FLAT_NAMES:

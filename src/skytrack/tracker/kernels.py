@@ -94,7 +94,9 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                   plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, q,
                   ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin):
     """``tracks`` index the bank rows (``*_all``), ``free`` the window's plots; the process noise of
-    a track is ``q_big`` times the model's while its psi is set or when ``forced``."""
+    a track is ``q_big`` times the model's while its psi is set or when ``forced``.  Returns the
+    gated pairs (track, plot indices into ``tracks``/``free``), their ``d^2`` and ``ln det S``, the
+    pairs' measurements and the number of candidates searched."""
     n_tracks = len(tracks)
     n_plots = len(free)
     n = 2 * ndim
@@ -161,6 +163,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     pair_pos = np.empty((count, 3))
     pair_cov = np.empty((count, 3, 3))
     d2_out = np.empty(count)
+    logdet_out = np.empty(count)
     kept_t = np.empty(count, np.int64)
     kept_p = np.empty(count, np.int64)
     x_pos = np.empty(ndim)
@@ -182,12 +185,14 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 for b in range(3):
                     pair_cov[m, a, b] = plot_cov[j, a, b]
         if ndim == 2:
-            total = _d2_planar(x[k], P[k], plot_time[j] - t[k], q, scale[k], pair_pos[m], pair_cov[m])
+            total, logdet = _d2_planar(x[k], P[k], plot_time[j] - t[k], q, scale[k], pair_pos[m], pair_cov[m])
         else:
             if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
                 continue  # S not positive definite: the pair cannot be gated
             total = 0.0
+            logdet = 0.0
             for a in range(ndim):
+                logdet += 2.0 * np.log(L[a, a])
                 acc = pair_pos[m, a] - x_pos[a]
                 for l in range(a):
                     acc -= L[a, l] * w[l]
@@ -195,10 +200,11 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 total += w[a] * w[a]
         if total <= gate:
             d2_out[m] = total
+            logdet_out[m] = logdet
             kept_t[m] = k
             kept_p[m] = j
             m += 1
-    return kept_t[:m], kept_p[:m], d2_out[:m], pair_pos[:m], pair_cov[:m], count
+    return kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], count
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -224,7 +230,7 @@ def _predict_cv_position(x, P, dt, q, scale, ndim, x_out, P_out):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _d2_planar(x, P, dt, q, scale, z, R):
-    """``d^2`` of a horizontal pair on scalars: :func:`_predict_cv_position`,
+    """``d^2`` and ``ln det S`` of a horizontal pair on scalars: :func:`_predict_cv_position`,
     :func:`_innovation_factor` and the triangular solve with the same operations (so the same
     bits); ``inf`` when S is not positive definite."""
     step = abs(dt)
@@ -241,16 +247,16 @@ def _d2_planar(x, P, dt, q, scale, z, R):
     s10 = 0.5 * ((p_mean + R[1, 0]) + (p_mean + R[0, 1]))
     s11 = p11 + R[1, 1]
     if s00 <= 0.0:
-        return np.inf
+        return np.inf, np.inf
     l00 = np.sqrt(s00)
     l10 = s10 / l00
     rest = s11 - l10 * l10
     if rest <= 0.0:
-        return np.inf
+        return np.inf, np.inf
     l11 = np.sqrt(rest)
     w0 = (z[0] - x0) / l00
     w1 = ((z[1] - x1) - l10 * w0) / l11
-    return w0 * w0 + w1 * w1
+    return w0 * w0 + w1 * w1, np.log(s00 * rest)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -279,7 +285,7 @@ def _innovation_factor(P_pos, R, ndim, L):
 def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, manoeuvre, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
                     z_hint, alt_m, status, mode3a, icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s,
-                    plot_iff):
+                    plot_iff, gain, score, score_max):
     """Kalman update (Joseph form) of the chosen pairs, the psi switch, and the bank's columns, in place.
 
     Each chosen pair is predicted to its plot's time (process noise ``q_big`` times the model's
@@ -287,7 +293,8 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
     and its factor are the gate's to the bit.  Same arithmetic as :func:`skytrack.filters.kernels.update_dense` with the position-selecting
     ``H``, then the spec 000 S3 switch of :class:`~skytrack.filters.maneuver.ManoeuvreSwitchFilter`
     and :meth:`skytrack.tracker.scan.ScanProcessor._write_updates` (two-point initiation after a
-    tentative track's second plot, hit bookkeeping, altitude and identity).
+    tentative track's second plot, hit bookkeeping, altitude and identity); the track score
+    grows by each pair's ``gain`` (:mod:`skytrack.tracker.evidence`).
     """
     n = 2 * ndim
     m = ndim
@@ -380,6 +387,8 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
         t[k] = plot_time[j]
         n_updates[k] += 1
         n_misses[k] = 0
+        score[k] += gain[c]
+        score_max[k] = max(score_max[k], score[k])
         z_hint[k] = pair_pos[c, 2]
         if np.isfinite(plot_mode_c[j]):
             alt_m[k] = plot_mode_c[j]

@@ -41,8 +41,10 @@ class Lifecycle:
         self.pos = position_index
         self.stats = stats
 
-    def record_events(self, bank: TrackBank, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
-        """M-of-N history and consecutive misses for tracks expected (or hit) in this window."""
+    def record_events(self, bank: TrackBank, hit: np.ndarray, expected: np.ndarray, w_end: float,
+                      log_miss: float = 0.0) -> None:
+        """M-of-N history, consecutive misses and the score of a miss (``log_miss`` = ln(1 - P_D))
+        for tracks expected (or hit) in this window."""
         n = len(hit)
         event = hit | expected
         bank.last_event[:n][event] = w_end
@@ -52,25 +54,30 @@ class Lifecycle:
         bank.n_events[:n][event] += 1
         missed = expected & ~hit
         bank.n_misses[:n][missed] += 1
+        bank.score[:n][missed] += log_miss
         self.stats["misses"] += int(missed.sum())
 
-    def manage(self, bank: TrackBank) -> None:
-        """Confirm, drop hopeless tentative tracks, delete lost confirmed ones."""
+    def manage(self, bank: TrackBank, score_logic: bool = False, confirm_score: float = np.inf,
+               drop_score: float = -np.inf, delete_drop: float = np.inf) -> None:
+        """Confirm, drop hopeless tentative tracks, delete lost confirmed ones: by hit counts, or
+        with ``score_logic`` by the track score (thresholds of :mod:`skytrack.tracker.evidence`)."""
         cfg = self.config
         if len(bank) == 0:
             return
         hits = np.bitwise_count(bank.hit_bits).astype(np.int64)
         tentative = bank.status == TENTATIVE
-        confirm = tentative & (hits >= cfg.confirm_m)
+        confirm = tentative & ((bank.score >= confirm_score) if score_logic else (hits >= cfg.confirm_m))
         bank.status[confirm] = CONFIRMED
         bank.confirmed_at[confirm] = bank.t[confirm]
         self.stats["tracks_confirmed"] += int(confirm.sum())
         observed = np.minimum(bank.n_events, cfg.confirm_n)
-        hopeless = tentative & ~confirm & ((observed - hits) > (cfg.confirm_n - cfg.confirm_m))
+        hopeless = tentative & ~confirm & ((bank.score < drop_score) if score_logic
+                                           else ((observed - hits) > (cfg.confirm_n - cfg.confirm_m)))
         P = bank.estimate().P
         pos_cov = P[:, self.pos[:, None], self.pos]
         too_uncertain = np.sqrt(np.maximum(max_eigenvalue_sym(pos_cov), 0)) > cfg.max_position_sigma_m
-        lost = (bank.status == CONFIRMED) & ((bank.n_misses >= cfg.delete_misses) | too_uncertain)
+        faded = (bank.score_max - bank.score >= delete_drop) if score_logic else (bank.n_misses >= cfg.delete_misses)
+        lost = (bank.status == CONFIRMED) & (faded | too_uncertain)
         self.stats["tentative_dropped"] += int(hopeless.sum())
         self.stats["tracks_deleted"] += int(lost.sum())
         bank.keep(~(hopeless | lost))

@@ -36,8 +36,10 @@ from skytrack.core.validate import require_positive
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.converted import ConvertedPositionModel
+from skytrack.models.height import bounded_height
 from skytrack.tracker.compiled import CompiledStages, fused_cv_q
 from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
+from skytrack.tracker.evidence import TrackScoring, ssr_log_ratio_reference
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.schedule import Schedule
@@ -49,12 +51,13 @@ RADIUS_FACTOR = 1.05
 @dataclass
 class AssociationConfig:
     """Gate probability ``p_gate`` (threshold: chi-square quantile for the measured components,
-    spec 000 R7) or a fixed ``gate_threshold``; ``scorer`` and ``assigner`` by registered name;
+    spec 000 R7) or a fixed ``gate_threshold``; ``scorer`` ("llr": likelihood ratio against the
+    local clutter density, the default; "d2"; "loglik") and ``assigner`` by registered name;
     ``compiled`` selects the numba kernels (False: the numpy/scipy reference)."""
 
     p_gate: float = 0.9995
     gate_threshold: float | None = None
-    scorer: str = "d2"
+    scorer: str = "llr"
     assigner: str = "gnn"
     compiled: bool = True
 
@@ -67,20 +70,37 @@ class AssociationConfig:
 
 @dataclass
 class GeometryConfig:
-    """``tracking_dim`` 2 (horizontal plane; 2-D plots placed at the Mode C altitude or
-    ``default_altitude_m``) or 3; None picks 3 when every radar is 3-D.  ``use_range_rate`` adds
-    Doppler range rate of 3-D radars that measure it (spec 000 R9)."""
+    """``tracking_dim`` 2 (horizontal plane) or 3; None picks 3 when every radar is 3-D.
+    A 2-D plot is placed at its Mode C altitude, else at its track's last Mode C, else by the
+    bounded height model (:mod:`skytrack.models.height`: between the radar horizon and
+    ``max_elevation_deg``, capped at ``max_altitude_m``) — or at a fixed ``default_altitude_m``
+    (± ``default_altitude_sigma_m``) when one is given.  ``use_range_rate`` adds the Doppler
+    range rate of 3-D radars that measure it (spec 000 R9)."""
 
     tracking_dim: int | None = None
-    default_altitude_m: float = 6000.0
+    default_altitude_m: float | None = None
     default_altitude_sigma_m: float = 3000.0
+    max_elevation_deg: float = 30.0
+    max_altitude_m: float = 13_700.0
     mode_c_sigma_m: float = 30.0
     use_range_rate: bool = True
 
     def __post_init__(self) -> None:
         if self.tracking_dim not in (None, 2, 3):
             raise ValueError(f"tracking_dim must be 2, 3 or None, got {self.tracking_dim}")
-        require_positive(self, "default_altitude_sigma_m", "mode_c_sigma_m")
+        require_positive(self, "default_altitude_sigma_m", "mode_c_sigma_m", "max_altitude_m")
+        if not 0.0 < self.max_elevation_deg <= 90.0:
+            raise ValueError(f"max_elevation_deg must be in (0, 90], got {self.max_elevation_deg}")
+        if self.default_altitude_m is not None and not math.isfinite(self.default_altitude_m):
+            raise ValueError(f"default_altitude_m must be finite, got {self.default_altitude_m}")
+
+    def assumed_heights(self, range_m: np.ndarray, sensor_alt_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Height and its standard deviation for 2-D plots without Mode C at ``range_m``."""
+        if self.default_altitude_m is not None:
+            return (np.full(len(range_m), self.default_altitude_m),
+                    np.full(len(range_m), self.default_altitude_sigma_m))
+        return bounded_height(range_m, sensor_alt_m, self.max_elevation_deg, self.max_altitude_m,
+                              self.mode_c_sigma_m)
 
 
 class ScanProcessor(CompiledStages):
@@ -106,6 +126,8 @@ class ScanProcessor(CompiledStages):
         self.scorer = build_scorer(assoc.scorer, **options)
         self.assigner = build_assigner(assoc.assigner, compiled=assoc.compiled) if assoc.assigner == "gnn" \
             else build_assigner(assoc.assigner)
+        self.llr_cost = assoc.scorer == "llr"
+        self.scoring = TrackScoring(config.score, sensors.sensors, schedule.period, dim, config.lifecycle.delete_misses)
         self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", 1.0) != 1.0
         geometry = config.geometry
         self.measurements = [
@@ -135,11 +157,16 @@ class ScanProcessor(CompiledStages):
         self._cover_r2 = np.array([r.max_range_m**2 for r in bounded], dtype=float)
 
     def convert(self, plots: PlotBatch) -> ConvertedPlots:
-        """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the default."""
+        """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the
+        assumed height (:meth:`GeometryConfig.assumed_heights`)."""
         geometry = self.config.geometry
         has_mode_c = np.isfinite(plots.mode_c_m)
-        altitude = np.where(has_mode_c, plots.mode_c_m, geometry.default_altitude_m)
-        altitude_sigma = np.where(has_mode_c, geometry.mode_c_sigma_m, geometry.default_altitude_sigma_m)
+        altitude = plots.mode_c_m.copy()
+        altitude_sigma = np.full(len(plots), geometry.mode_c_sigma_m)
+        for s in np.unique(plots.sensor[~has_mode_c]):
+            rows = np.flatnonzero((plots.sensor == s) & ~has_mode_c)
+            altitude[rows], altitude_sigma[rows] = geometry.assumed_heights(
+                plots.range_m[rows], float(self.sensors.sensors[s].alt_m or 0.0))
         converted = ConvertedPlots(np.empty((len(plots), 3)), np.empty((len(plots), 3, 3)),
                                    np.empty(len(plots), dtype=bool))
         for s in np.unique(plots.sensor):
@@ -159,6 +186,7 @@ class ScanProcessor(CompiledStages):
         return converted
 
     def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
+        self._window_evidence(s, plots)
         if self.fused[s] and self.schedule.rotating[s] and set(self.bank.column_storage) == self._standard_columns:
             self._process_compiled(s, w_start, w_end, plots, converted)
             return
@@ -166,6 +194,7 @@ class ScanProcessor(CompiledStages):
         n_tracks = len(bank)
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
+        plot_stage = np.full(len(plots), -1, np.int8)
         compiled_window = self.fused[s] and self.schedule.rotating[s]
         expected = hit
         if n_tracks:
@@ -179,7 +208,7 @@ class ScanProcessor(CompiledStages):
             confirmed = status == CONFIRMED
             # confirmed tracks first; then confirmed quiet tracks that found nothing try the
             # manoeuvre gate (psi = 1); then tentative tracks on what is left
-            for stage in ("confirmed", "manoeuvre", "tentative"):
+            for stage_index, stage in enumerate(("confirmed", "manoeuvre", "tentative")):
                 if stage == "confirmed":
                     members = confirmed
                 elif stage == "manoeuvre":
@@ -196,17 +225,19 @@ class ScanProcessor(CompiledStages):
                                                                   stage == "manoeuvre")
                 hit[assigned_tracks] = True
                 plot_used[assigned_plots] = True
+                plot_stage[assigned_plots] = stage_index
             if not compiled_window:
-                self.lifecycle.record_events(bank, hit, expected, w_end)
+                self.lifecycle.record_events(bank, hit, expected, w_end, self.scoring.log_miss[s])
         self.stats["plots_assigned"] += int(plot_used.sum())
+        self._learn(s, w_start, w_end, plots, plot_stage)
         if compiled_window and set(bank.column_storage) == self._standard_columns:
-            self._initiate_manage_compiled(plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+            self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
             return
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         if compiled_window:
-            self._manage_compiled(hit, expected, w_end)
+            self._manage_compiled(s, hit, expected, w_end)
         else:
-            self.lifecycle.manage(bank)
+            self.lifecycle.manage(bank, *self._score_settings(s)[1:])
 
     def _positions_at(self, t: float) -> np.ndarray:
         """Deterministic 3-D position extrapolation of every track (no covariance), for geometry."""
@@ -253,16 +284,29 @@ class ScanProcessor(CompiledStages):
         z, measurement_context = self._measurement(s, model, pj, plots, position, covariance)
         innovation = self.filter.innovate(predicted, z, model, measurement_context if context is None
                                           else {**measurement_context, **context})
-        scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank))
+        evidence = self._pair_evidence(s, ti, pj, plots)
+        if self.llr_cost:
+            scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank), evidence, self.scoring.log_miss[s])
+        else:
+            scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank))
         chosen = self.assigner.assign(scores, len(bank), len(plots))
         if len(chosen) == 0:
             return empty, empty
+        gain = innovation.loglik[chosen] + evidence[chosen]
         ti, pj = ti[chosen], pj[chosen]
         updated, _ = self.filter.update(predicted.take(chosen), z[chosen], innovation.take(chosen))
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(ti)
-        self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen])
+        self._write_updates(ti, pj, updated, plots, position[chosen], covariance[chosen], gain)
         return ti, pj
+
+    def _pair_evidence(self, s, ti, pj, plots: PlotBatch) -> np.ndarray:
+        """Per pair: ln P_D - ln beta_j + ln(SSR ratio), the part of a hit's score gain beyond
+        ln N(nu; 0, S) (:mod:`skytrack.tracker.evidence`)."""
+        bank = self.bank
+        ssr = ssr_log_ratio_reference(plots.mode3a[pj], plots.mode_c_m[pj], bank.mode3a[ti], bank.alt_m[ti],
+                                      plots.time[pj] - bank.t[ti], self._evidence[1])
+        return self.scoring.log_pd[s] - self._evidence[0][pj] + ssr
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
         dim = self.dim
@@ -294,9 +338,12 @@ class ScanProcessor(CompiledStages):
                 covariance[reuse] = redo.covariance
         return position, covariance
 
-    def _write_updates(self, ti, pj, updated, plots: PlotBatch, position, covariance) -> None:
-        """Store updated states and attributes; ``position``/``covariance`` are the pairs' plots."""
+    def _write_updates(self, ti, pj, updated, plots: PlotBatch, position, covariance, gain) -> None:
+        """Store updated states and attributes; ``position``/``covariance`` are the pairs' plots,
+        ``gain`` their score gains."""
         bank = self.bank
+        bank.score[ti] += gain
+        bank.score_max[ti] = np.maximum(bank.score_max[ti], bank.score[ti])
         if self.config.initiation.method == "two-point":
             second = (bank.n_updates[ti] == 1) & (bank.status[ti] == TENTATIVE)
             if second.any():

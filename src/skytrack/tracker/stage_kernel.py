@@ -5,7 +5,9 @@ chi-square gate), :func:`skytrack.association.kernels.assign_clusters` (global n
 neighbour: lone pairs, dense clusters up to ``max_dense`` nodes, sparse shortest paths above)
 and :func:`skytrack.tracker.kernels.update_write_cv` (Kalman update, psi switch, bank
 columns) so that a stage costs one dispatch from Python; :func:`stages_cv` runs every stage of
-a window in one call.
+a window in one call.  Between gate and assignment, :func:`pair_evidence` gives each pair its
+score gain and cost (:mod:`skytrack.tracker.evidence`): ``d^2`` with the gate as the cost of a
+miss, or (``llr_cost``) the log-likelihood ratio against a miss, pairs worse than a miss left out.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from skytrack.association.kernels import assign_clusters
+from skytrack.tracker.evidence import LOG_2PI, ssr_log_ratio
 from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 
 
@@ -22,23 +25,65 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff):
+             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, plot_log_clutter, llr_cost,
+             log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
-    kt, kp, d2, position, covariance, candidates = gate_stage_cv(
+    kt, kp, d2, logdet, position, covariance, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
-    chosen = assign_clusters(kt, kp, d2, np.full(len(tracks), miss), len(tracks), len(free), max_dense)
-    pick = np.flatnonzero(chosen)
+    gain, cost, offered, miss_cost = pair_evidence(
+        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, plot_log_clutter, ssr, plot_time,
+        plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
+    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
+    pick = offered[np.flatnonzero(chosen)]
     rows = np.empty(len(pick), np.int64)
     plot_rows = np.empty(len(pick), np.int64)
     for c in range(len(pick)):
         rows[c] = tracks[kt[pick[c]]]
         plot_rows[c] = free[kp[pick[c]]]
     update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
-                    psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
-                    icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
+                    psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all,
+                    n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, plot_time, plot_mode_c,
+                    plot_mode3a, plot_mode_s, plot_iff, gain[pick], score, score_max)
     return rows, plot_rows, candidates
+
+
+@njit(cache=True, nogil=True)
+def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, log_pd, log_miss, plot_log_clutter, ssr,
+                  plot_time, plot_mode3a, plot_mode_c, mode3a, alt_m, t):
+    """Per gated pair: the score gain of a hit, the assignment cost, the pairs offered to the
+    assignment (indices) and the cost of a miss per track (see the module docstring).
+
+    With ``llr_cost`` the cost of pair (i, j) is ``-2 (gain_ij - ln(1 - P_D))``; pairs with a cost
+    >= 0 are not offered, and each track's costs are shifted by its cheapest pair so that they
+    are >= 0 (the assignment's shortest paths need that; a track takes one pair or its miss, so
+    the shift does not change the choice): the miss then costs minus that cheapest cost."""
+    count = len(kt)
+    gain = np.empty(count)
+    cost = np.empty(count)
+    for c in range(count):
+        row = tracks[kt[c]]
+        j = free[kp[c]]
+        evidence = ssr_log_ratio(plot_mode3a[j], plot_mode_c[j], mode3a[row], alt_m[row], plot_time[j] - t[row], ssr)
+        gain[c] = log_pd - 0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI) - plot_log_clutter[j] + evidence
+        cost[c] = -2.0 * (gain[c] - log_miss) if llr_cost else d2[c]
+    miss_cost = np.full(len(tracks), gate_miss)
+    if not llr_cost:
+        return gain, cost, np.arange(count), miss_cost
+    cheapest = np.zeros(len(tracks))
+    offered = np.empty(count, np.int64)
+    m = 0
+    for c in range(count):
+        if cost[c] < 0.0:
+            cheapest[kt[c]] = min(cheapest[kt[c]], cost[c])
+            offered[m] = c
+            m += 1
+    for c in range(count):
+        cost[c] -= cheapest[kt[c]]
+    for k in range(len(tracks)):
+        miss_cost[k] = -cheapest[k]
+    return gain, cost, offered[:m], miss_cost
 
 
 @njit(cache=True, nogil=True)
@@ -46,12 +91,13 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
-              plot_mode_s, plot_iff):
+              plot_mode_s, plot_iff, plot_log_clutter, llr_cost, log_pd, log_miss, ssr, score, score_max, plot_stage):
     """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
     ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
     (:meth:`skytrack.tracker.scan.ScanProcessor.process`).  ``status_now`` is each track's status,
-    or -1 when it is too far from the swept sector; ``hit`` and ``plot_used`` are updated.
+    or -1 when it is too far from the swept sector; ``hit``, ``plot_used`` and ``plot_stage`` (the
+    stage that took each plot) are updated.
     Returns the number of candidate pairs and of manoeuvre-gate hits.
     """
     n_tracks = len(status_now)
@@ -91,11 +137,13 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
             plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s,
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff)
+            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, plot_log_clutter, llr_cost,
+            log_pd, log_miss, ssr, score, score_max)
         candidates += found
         for c in range(len(rows)):
             hit[rows[c]] = True
             plot_used[plot_rows[c]] = True
+            plot_stage[plot_rows[c]] = stage
         if forced:
             manoeuvre_hits += len(rows)
     return candidates, manoeuvre_hits

@@ -5,7 +5,8 @@
   (:meth:`~skytrack.tracker.scan.ScanProcessor._positions_at`) in the same call;
 * :func:`record_and_manage` — :meth:`skytrack.tracker.lifecycle.Lifecycle.record_events` then
   the decisions of :meth:`~skytrack.tracker.lifecycle.Lifecycle.manage` (confirmation, hopeless
-  tentative tracks, lost confirmed tracks).
+  tentative tracks, lost confirmed tracks, by hit counts or by the track score of
+  :mod:`skytrack.tracker.evidence`).
 
 The numpy methods named are the reference; tests hold the two equal.
 """
@@ -72,10 +73,14 @@ def expect_rotating(x, t, z_hint, n, dim, order, mid, w_start, w_end, phase, per
 
 @njit(cache=True, nogil=True)
 def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t, status,
-                      hit_bits, n_events, n_misses, last_event, confirmed_at):
+                      hit_bits, n_events, n_misses, last_event, confirmed_at, score, score_max, log_miss, score_logic,
+                      confirm_score, drop_score, delete_drop):
     """Events of this window, then the life-cycle decisions; returns the keep mask and counts
     (misses, confirmed, hopeless, lost).  ``hit``/``expected`` cover the rows that existed before
-    the window's new tracks; the decisions cover all ``len(status)`` rows."""
+    the window's new tracks; the decisions cover all ``len(status)`` rows.  A miss adds
+    ``log_miss`` to the score; with ``score_logic`` a tentative track is confirmed at
+    ``confirm_score`` and dropped below ``drop_score``, a confirmed one deleted when its score is
+    ``delete_drop`` below its maximum (else M-of-N and ``delete_misses``)."""
     mask = np.uint32((1 << confirm_n) - 1)
     misses = 0
     for k in range(len(hit)):
@@ -86,6 +91,7 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
         if expected[k] and not hit[k]:
             n_misses[k] += 1
             misses += 1
+            score[k] += log_miss
     rows = len(status)
     keep = np.ones(rows, np.bool_)
     confirmed = 0
@@ -100,13 +106,13 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
             hits += bits & np.uint32(1)
             bits >>= np.uint32(1)
         if status[k] == 0:
-            if hits >= confirm_m:
+            if (score[k] >= confirm_score) if score_logic else (hits >= confirm_m):
                 status[k] = 1
                 confirmed_at[k] = t[k]
                 confirmed += 1
             else:
                 observed = min(n_events[k], confirm_n)
-                if observed - hits > confirm_n - confirm_m:
+                if (score[k] < drop_score) if score_logic else (observed - hits > confirm_n - confirm_m):
                     keep[k] = False
                     hopeless += 1
                 continue
@@ -114,7 +120,8 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
             for b in range(dim):
                 block[a, b] = P[k, pos_index[a], pos_index[b]]
         largest = _max_eig_sym(block, dim)
-        if n_misses[k] >= delete_misses or np.sqrt(max(largest, 0.0)) > max_sigma:
+        faded = (score_max[k] - score[k] >= delete_drop) if score_logic else (n_misses[k] >= delete_misses)
+        if faded or np.sqrt(max(largest, 0.0)) > max_sigma:
             keep[k] = False
             lost += 1
     return keep, misses, confirmed, hopeless, lost
@@ -124,7 +131,8 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
 def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c, plot_mode3a, plot_mode_s,
                        plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                        max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
-                       n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff):
+                       n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
+                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop):
     """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
     one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
     window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
@@ -163,10 +171,13 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
         mode3a[k] = plot_mode3a[j]
         icao24[k] = plot_mode_s[j]
         iff[k] = plot_iff[j]
+        score[k] = 0.0
+        score_max[k] = 0.0
     rows = size + len(new_plots)
     keep, misses, confirmed, hopeless, lost = record_and_manage(
         hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t[:rows], status[:rows],
-        hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows])
+        hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows], score[:rows],
+        score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop)
     m = 0
     for k in range(rows):
         if not keep[k]:
@@ -195,6 +206,8 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
             mode3a[m] = mode3a[k]
             icao24[m] = icao24[k]
             iff[m] = iff[k]
+            score[m] = score[k]
+            score_max[m] = score_max[k]
         m += 1
     return m, misses, confirmed, hopeless, lost
 

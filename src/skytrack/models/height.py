@@ -1,0 +1,46 @@
+"""Heights of 2-D radar plots without Mode C: the bounded height model.
+
+A 2-D radar measures slant range and azimuth only; to place a plot on the ground plane the
+tracker needs the target's height.  With Mode C it is known (to the 100 ft rounding).
+Without it, a single default height is wrong in two ways: near the radar a default above the
+slant range collapses the plot onto the antenna with an enormous covariance (the plots that
+made the false tracks of issue 6), and far out it claims a precision it does not have.
+
+The bounded model says what the radar does know: at slant range ``r`` the target is between
+
+* the lowest height the beam reaches at that range — elevation 0 on the 4/3-Earth
+  refraction model, ``h_lo = sqrt(r^2 + (k R + h_s)^2) - k R`` (``k = 4/3``, ``h_s`` the
+  antenna height), since below the radar horizon nothing is seen; and
+* the height at the highest elevation the radar's beam covers, ``max_elevation_deg``, on the
+  geometric sphere, capped at the aircraft ceiling ``max_altitude_m``:
+  ``h_hi = min(sqrt(r^2 + (R + h_s)^2 + 2 r (R + h_s) sin e_max) - R, ceiling)``.
+
+The plot is placed at the middle of ``[h_lo, h_hi]`` with the standard deviation of a uniform
+distribution over it, ``(h_hi - h_lo) / sqrt(12)`` (never below ``min_sigma_m``); the
+conversion carries that spread into the plot's range uncertainty through the projection's
+derivative.  The placed height never exceeds the slant range, so no plot lands on the antenna.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from skytrack.geo.polar import EARTH_RADIUS_M
+
+#: effective Earth radius factor of the standard-atmosphere radar horizon
+REFRACTION_K = 4.0 / 3.0
+
+
+def bounded_height(slant_range_m: np.ndarray, sensor_alt_m: float, max_elevation_deg: float,
+                   max_altitude_m: float, min_sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Height (m above the ellipsoid) and its standard deviation for plots at ``slant_range_m``."""
+    r = np.asarray(slant_range_m, dtype=float)
+    effective = REFRACTION_K * EARTH_RADIUS_M + sensor_alt_m
+    low = np.sqrt(r * r + effective * effective) - REFRACTION_K * EARTH_RADIUS_M
+    geometric = EARTH_RADIUS_M + sensor_alt_m
+    sin_e = math.sin(math.radians(max_elevation_deg))
+    high = np.sqrt(r * r + geometric * geometric + 2.0 * r * geometric * sin_e) - EARTH_RADIUS_M
+    high = np.maximum(np.minimum(high, max_altitude_m), low)
+    return 0.5 * (low + high), np.maximum((high - low) / math.sqrt(12.0), min_sigma_m)
