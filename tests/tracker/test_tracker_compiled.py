@@ -30,9 +30,16 @@ def crossing():
 def test_compiled_tracker_equals_the_reference(crossing, flat):
     compiled = Tracker(crossing.sensors, TrackerConfig(**flat))
     tracks = compiled.run(crossing.plots)
-    reference = Tracker(crossing.sensors, _reference(**flat)).run(crossing.plots)
+    composed = Tracker(crossing.sensors, _reference(**flat))
+    reference = composed.run(crossing.plots)
     assert len(tracks) > 100
     pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)
+    # the track scores and what the clutter map and the code counts learned are the same too
+    np.testing.assert_allclose(compiled.bank.score, composed.bank.score, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(compiled.bank.score_max, composed.bank.score_max, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(compiled.scan.scoring.maps[0].counts, composed.scan.scoring.maps[0].counts,
+                               rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(compiled.scan.scoring.code_counts[0], composed.scan.scoring.code_counts[0])
     if not flat:
         assert compiled.scan.fused[0]  # the default configuration takes the fused stage
 

@@ -16,11 +16,15 @@ The density of cell ``c`` is a gamma-Poisson estimate with the sensor's prior
     rate_c = (prior_scans * prior_rate_c + counts_c) / (prior_scans + exposure_scans)   [plots/scan]
     beta_c = rate_c / area_c          area_c = (r_hi^2 - r_lo^2) / 2 * d_az             [plots/m^2]
 
+The forgetting is kept as one scale factor (the counts are stored divided by it, and folded
+back when it gets small), so that a window costs time in its plots, not in the cells.
+
 For 3-D tracking the density is per m^3: the area is multiplied by the height the cell spans
 between elevations 0 and ``elevation_span_deg`` at the cell's middle range (at least 1 km).
-Plots beyond the last cell count in it.  :func:`log_density_kernel` and
-:func:`observe_kernel` are the compiled forms used per window; :meth:`ClutterMap.log_density`
-is the numpy reference they are tested against.
+Plots beyond the last cell count in it.  :func:`log_density_at` and
+:func:`observe_kernel` are the compiled forms (the association stage looks the density up
+for the plots of its gated pairs only); :meth:`ClutterMap.log_density` and
+:meth:`ClutterMap.observe` are the numpy reference they are tested against.
 """
 
 from __future__ import annotations
@@ -34,90 +38,96 @@ from numba import njit
 DEFAULT_RANGE_M = 500_000.0
 
 
+# layout of a map's parameter vector (one array, so that a kernel takes a map as three arguments)
+EXPOSURE, SCALE, PRIOR_SCANS, CELL_RANGE, MEMORY_SCANS = range(5)
+
+
 class ClutterMap:
-    """Clutter density of one sensor's range-azimuth cells (see the module docstring)."""
+    """Clutter density of one sensor's range-azimuth cells (see the module docstring).
+
+    ``grid[0]`` holds the prior counts, ``grid[1]`` the learned counts divided by
+    ``params[SCALE]``; ``params`` also holds the exposure in scans, the prior's weight, the cell
+    length and the memory; ``log_area`` the log area (or volume) of each range ring's cells."""
 
     def __init__(self, max_range_m: float | None, prior_per_scan: float, range_cells: int, azimuth_cells: int,
                  prior_scans: float, memory_scans: float, dim: int, elevation_span_deg: float) -> None:
         self.max_range_m = float(max_range_m or DEFAULT_RANGE_M)
         self.range_cells = range_cells
         self.azimuth_cells = azimuth_cells
-        self.memory_scans = memory_scans
-        self.cell_range_m = self.max_range_m / range_cells
-        edges = np.arange(range_cells + 1) * self.cell_range_m
+        cell_range = self.max_range_m / range_cells
+        edges = np.arange(range_cells + 1) * cell_range
         d_az = 2.0 * math.pi / azimuth_cells
         area = 0.5 * (edges[1:] ** 2 - edges[:-1] ** 2) * d_az
         if dim == 3:
             middle = 0.5 * (edges[1:] + edges[:-1])
             area = area * np.maximum(middle * math.sin(math.radians(elevation_span_deg)), 1000.0)
         self.log_area = np.log(area)
-        self.prior_counts = np.full((range_cells, azimuth_cells), prior_scans * prior_per_scan
-                                    / (range_cells * azimuth_cells))
-        self.prior_scans = float(prior_scans)
-        self.counts = np.zeros((range_cells, azimuth_cells))
-        self.exposure = np.zeros(1)
+        self.grid = np.zeros((2, range_cells, azimuth_cells))
+        self.grid[0] = prior_scans * prior_per_scan / (range_cells * azimuth_cells)
+        self.params = np.array([0.0, 1.0, float(prior_scans), cell_range, float(memory_scans)])
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Forgotten counts of false plots per cell."""
+        return self.grid[1] * self.params[SCALE]
 
     def cells(self, range_m: np.ndarray, azimuth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rc = np.clip((range_m / self.cell_range_m).astype(np.int64), 0, self.range_cells - 1)
-        ac = np.clip((np.mod(azimuth, 2 * math.pi) / (2 * math.pi) * self.azimuth_cells).astype(np.int64), 0,
-                     self.azimuth_cells - 1)
+        with np.errstate(invalid="ignore"):
+            rc = np.clip(np.nan_to_num(range_m / self.params[CELL_RANGE]), 0, self.range_cells - 1).astype(np.int64)
+            turn = np.nan_to_num(np.mod(azimuth, 2 * math.pi) / (2 * math.pi))
+        ac = np.clip((turn * self.azimuth_cells).astype(np.int64), 0, self.azimuth_cells - 1)
         return rc, ac
 
     def log_density(self, range_m: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
-        """ln beta at each plot (numpy reference of :func:`log_density_kernel`)."""
+        """ln beta at each plot (numpy reference of :func:`log_density_at`)."""
         rc, ac = self.cells(range_m, azimuth)
-        rate = (self.prior_counts[rc, ac] + self.counts[rc, ac]) / (self.prior_scans + self.exposure[0])
+        rate = (self.grid[0][rc, ac] + self.counts[rc, ac]) / (self.params[PRIOR_SCANS] + self.params[EXPOSURE])
         return np.log(rate) - self.log_area[rc]
 
-    def observe(self, range_m: np.ndarray, azimuth: np.ndarray, scans: float) -> None:
-        """Forget by ``scans`` elapsed scans, then count the given false plots (numpy reference)."""
-        keep = math.exp(-scans / self.memory_scans)
-        self.counts *= keep
-        self.exposure[0] = self.exposure[0] * keep + scans
-        rc, ac = self.cells(range_m, azimuth)
-        np.add.at(self.counts, (rc, ac), 1.0)
+    def observe(self, range_m: np.ndarray, azimuth: np.ndarray, plot_stage: np.ndarray, scans: float) -> None:
+        """Forget by ``scans`` elapsed scans, then count the plots no confirmed track took
+        (``plot_stage`` not 0 or 1; numpy reference of :func:`observe_kernel`)."""
+        keep = math.exp(-scans / self.params[MEMORY_SCANS])
+        counts = self.counts * keep
+        false = (plot_stage != 0) & (plot_stage != 1)
+        rc, ac = self.cells(range_m[false], azimuth[false])
+        np.add.at(counts, (rc, ac), 1.0)
+        self.grid[1] = counts
+        self.params[EXPOSURE] = self.params[EXPOSURE] * keep + scans
+        self.params[SCALE] = 1.0
 
     def total_rate(self) -> float:
         """Estimated false plots per scan over the whole map."""
-        return float((self.prior_counts.sum() + self.counts.sum()) / (self.prior_scans + self.exposure[0]))
+        return float((self.grid[0].sum() + self.counts.sum()) / (self.params[PRIOR_SCANS] + self.params[EXPOSURE]))
 
-    def arguments(self) -> tuple:
-        """The map's arrays and constants in the order the kernels take them."""
-        return (self.prior_counts, self.counts, self.exposure, self.prior_scans, self.log_area, self.cell_range_m,
-                self.range_cells, self.azimuth_cells)
+
+@njit(cache=True, nogil=True, inline="always")
+def log_density_at(r, az, grid, params, log_area):
+    """ln beta of one plot (:meth:`ClutterMap.log_density`)."""
+    range_cells = grid.shape[1]
+    azimuth_cells = grid.shape[2]
+    rc = 0
+    if r == r:
+        rc = min(max(int(min(r / params[CELL_RANGE], range_cells)), 0), range_cells - 1)
+    ac = 0
+    if az == az:
+        turn = az / (2.0 * np.pi)
+        turn -= np.floor(turn)
+        ac = min(max(int(turn * azimuth_cells), 0), azimuth_cells - 1)
+    rate = (grid[0, rc, ac] + grid[1, rc, ac] * params[SCALE]) / (params[PRIOR_SCANS] + params[EXPOSURE])
+    return np.log(rate) - log_area[rc], rc, ac
 
 
 @njit(cache=True, nogil=True)
-def _cell(r, az, cell_range, range_cells, azimuth_cells):
-    rc = min(max(int(r / cell_range), 0), range_cells - 1) if r == r else 0
-    turn = az / (2.0 * np.pi)
-    turn -= np.floor(turn)
-    ac = min(max(int(turn * azimuth_cells), 0), azimuth_cells - 1) if az == az else 0
-    return rc, ac
-
-
-@njit(cache=True, nogil=True)
-def log_density_kernel(range_m, azimuth, prior_counts, counts, exposure, prior_scans, log_area, cell_range,
-                       range_cells, azimuth_cells):
-    """ln beta of every plot of a window (:meth:`ClutterMap.log_density`)."""
-    out = np.empty(len(range_m))
-    scans = prior_scans + exposure[0]
+def observe_kernel(range_m, azimuth, plot_stage, scans, grid, params, log_area):
+    """:meth:`ClutterMap.observe` in place."""
+    keep = np.exp(-scans / params[MEMORY_SCANS])
+    params[EXPOSURE] = params[EXPOSURE] * keep + scans
+    params[SCALE] *= keep
+    if params[SCALE] < 1e-100:
+        grid[1] *= params[SCALE]
+        params[SCALE] = 1.0
     for j in range(len(range_m)):
-        rc, ac = _cell(range_m[j], azimuth[j], cell_range, range_cells, azimuth_cells)
-        out[j] = np.log((prior_counts[rc, ac] + counts[rc, ac]) / scans) - log_area[rc]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def observe_kernel(range_m, azimuth, false_plot, scans, memory_scans, prior_counts, counts, exposure, prior_scans,
-                   log_area, cell_range, range_cells, azimuth_cells):
-    """:meth:`ClutterMap.observe` of the plots flagged ``false_plot``."""
-    keep = np.exp(-scans / memory_scans)
-    for rc in range(range_cells):
-        for ac in range(azimuth_cells):
-            counts[rc, ac] *= keep
-    exposure[0] = exposure[0] * keep + scans
-    for j in range(len(range_m)):
-        if false_plot[j]:
-            rc, ac = _cell(range_m[j], azimuth[j], cell_range, range_cells, azimuth_cells)
-            counts[rc, ac] += 1.0
+        if plot_stage[j] != 0 and plot_stage[j] != 1:
+            _, rc, ac = log_density_at(range_m[j], azimuth[j], grid, params, log_area)
+            grid[1, rc, ac] += 1.0 / params[SCALE]

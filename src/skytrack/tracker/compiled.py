@@ -60,8 +60,8 @@ class CompiledStages:
             status_now = np.where(nearby, bank.status, -1).astype(np.int8)
             self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage)
         self.stats["plots_assigned"] += int(plot_used.sum())
-        self._learn(s, w_start, w_end, plots, plot_stage)
-        self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+        self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_start, w_end,
+                                       plot_stage)
 
     def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage) -> None:
         storage, columns = self.bank.storage, self.bank.column_storage
@@ -91,23 +91,23 @@ class CompiledStages:
             self._rotation[s], self._origin[s], self.scorer.gate(dim + 1), MAX_DENSE_CLUSTER, psi_enabled, on, off,
             memory, self.config.initiation.method == "two-point", nis_avg, filter_updates, columns["n_updates"],
             columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"], columns["icao24"],
-            columns["iff"], plots.mode3a, plots.mode_s, plots.iff, self._evidence[0], self.llr_cost,
-            self.scoring.log_pd[s], self.scoring.log_miss[s], self._evidence[1], columns["score"], columns["score_max"],
+            columns["iff"], plots.mode3a, plots.mode_s, plots.iff, *self.scoring.clutter_arguments(s), self.llr_cost,
+            self.scoring.log_pd[s], self.scoring.log_miss[s], self._evidence[0], columns["score"], columns["score_max"],
         )
 
-    def _window_evidence(self, s: int, plots: PlotBatch) -> None:
-        """The window's clutter density at each plot, SSR parameters and score thresholds."""
-        self._evidence = (self.scoring.plot_log_density(s, plots.range_m, plots.azimuth), *self.scoring.window(s))
+    def _window_evidence(self, s: int) -> None:
+        """The window's SSR parameters and score thresholds (:meth:`TrackScoring.window`)."""
+        self._evidence = self.scoring.window(s)
 
     def _learn(self, s: int, w_start: float, w_end: float, plots: PlotBatch, plot_stage: np.ndarray) -> None:
-        """The clutter map and code probabilities learn from the window's plots."""
+        """The clutter map and code probabilities learn from the window's plots (numpy reference)."""
         scans = (w_end - w_start) / self.scoring.periods[s]
         self.scoring.observe(s, plots.range_m, plots.azimuth, plots.mode3a, plots.mode_c_m, plot_stage, scans)
 
     def _score_settings(self, s: int) -> tuple:
         """(log_miss, score_logic, confirm_score, drop_score, delete_drop) of sensor ``s``'s window."""
         scoring = self.scoring
-        return (scoring.log_miss[s], self.config.score.track_logic == "score", self._evidence[2], self._evidence[3],
+        return (scoring.log_miss[s], self.config.score.track_logic == "score", self._evidence[1], self._evidence[2],
                 scoring.delete_drop[s])
 
     def _switch_arrays(self):
@@ -132,7 +132,8 @@ class CompiledStages:
                                SECTOR_MARGIN)
 
     def _initiate_manage_compiled(self, s: int, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
-                                  hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+                                  hit: np.ndarray, expected: np.ndarray, w_start: float, w_end: float,
+                                  plot_stage: np.ndarray) -> None:
         """Initiation, events, life cycle and compaction in one compiled call (standard columns only)."""
         bank = self.bank
         bank.reserve(len(bank) + len(new))
@@ -148,7 +149,9 @@ class CompiledStages:
             columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
             columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
-            columns["iff"], columns["score"], columns["score_max"], *self._score_settings(s),
+            columns["iff"], columns["score"], columns["score_max"], *self._score_settings(s), plots.range_m,
+            plots.azimuth, plot_stage, (w_end - w_start) / self.scoring.periods[s], *self.scoring.clutter_arguments(s),
+            self.scoring.code_counts[s],
         )
         bank.size = size
         self.next_track_id += len(new)

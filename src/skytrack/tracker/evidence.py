@@ -190,12 +190,13 @@ def ssr_log_ratio_reference(plot_code, plot_alt, track_code, track_alt, dt, ssr)
 
 
 @njit(cache=True, nogil=True)
-def count_codes(target_plot, false_plot, mode3a, mode_c, counts):
-    """Add a window's plots to the code counts (:data:`TN`... layout)."""
+def count_codes(plot_stage, mode3a, mode_c, counts):
+    """Add a window's plots to the code counts (:data:`TN`... layout): plots of confirmed tracks
+    (``plot_stage`` 0 or 1) as targets', plots no track took (-1) as false."""
     for j in range(len(mode3a)):
-        if target_plot[j]:
+        if plot_stage[j] == 0 or plot_stage[j] == 1:
             base = 0
-        elif false_plot[j]:
+        elif plot_stage[j] == -1:
             base = 3
         else:
             continue
@@ -218,60 +219,47 @@ class TrackScoring:
         from skytrack.tracker.clutter_map import ClutterMap
 
         self.config = config
-        self.maps: list[ClutterMap | None] = []
-        self.uniform_log_density: list[float] = []
-        self.prior_rate: list[float] = []
+        self.maps: list[ClutterMap] = []
         self.log_pd, self.log_miss, self.delete_drop = [], [], []
         self.code_counts = [config.new_code_counts() for _ in sensors]
         self.periods = [float(p) if p and np.isfinite(p) and p > 0 else 1.0 for p in periods]
         self._cache: list[tuple | None] = [None for _ in sensors]
         self._age = [0 for _ in sensors]
         for sensor in sensors:
-            prior = config.prior_clutter(sensor)
-            self.prior_rate.append(prior)
-            reach = float(sensor.max_range_m or 500_000.0)
-            self.maps.append(ClutterMap(sensor.max_range_m, prior, config.range_cells, config.azimuth_cells,
-                                        config.prior_scans, config.memory_scans, dim, config.elevation_span_deg)
-                             if sensor.is_radar else None)
-            volume = math.pi * reach**2 * (max(reach * math.sin(math.radians(config.elevation_span_deg)), 1000.0)
-                                           if dim == 3 else 1.0)
-            self.uniform_log_density.append(math.log(prior / volume))
+            # a sensor without range and azimuth (ADS-B) gets one cell: a uniform density
+            cells = (config.range_cells, config.azimuth_cells) if sensor.is_radar else (1, 1)
+            self.maps.append(ClutterMap(sensor.max_range_m, config.prior_clutter(sensor), *cells, config.prior_scans,
+                                        config.memory_scans, dim, config.elevation_span_deg))
             p_d = config.detection_probability(sensor)
             self.log_pd.append(math.log(p_d))
             self.log_miss.append(math.log1p(-p_d))
             # a hair below the drop of delete_misses misses, so that rounding cannot add one
             self.delete_drop.append(-delete_misses * math.log1p(-p_d) * (1.0 - 1e-9))
 
-    def plot_log_density(self, s: int, range_m: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
-        """ln beta at each plot of sensor ``s``."""
-        from skytrack.tracker.clutter_map import log_density_kernel
-
-        clutter_map = self.maps[s]
-        if clutter_map is None:
-            return np.full(len(range_m), self.uniform_log_density[s])
-        return log_density_kernel(range_m, azimuth, *clutter_map.arguments())
-
     def window(self, s: int) -> tuple:
         """(ssr parameters, confirm threshold, drop threshold) of sensor ``s``, refreshed every
         :data:`REFRESH_WINDOWS` windows."""
         self._age[s] -= 1
-        if self._cache[s] is None or self._age[s] <= 0:
-            clutter_map = self.maps[s]
-            rate = clutter_map.total_rate() if clutter_map is not None else self.prior_rate[s]
-            confirm, drop = self.config.thresholds(rate, self.periods[s])
+        if self._age[s] <= 0 or self._cache[s] is None:
+            confirm, drop = self.config.thresholds(self.maps[s].total_rate(), self.periods[s])
             self._cache[s] = (self.config.ssr_parameters(self.code_counts[s]), confirm, drop)
             self._age[s] = REFRESH_WINDOWS
         return self._cache[s]
 
+    def clutter_arguments(self, s: int) -> tuple:
+        """Sensor ``s``'s clutter map as the kernels take it (grid, params, log_area)."""
+        clutter_map = self.maps[s]
+        return clutter_map.grid, clutter_map.params, clutter_map.log_area
+
     def observe(self, s: int, range_m: np.ndarray, azimuth: np.ndarray, mode3a: np.ndarray, mode_c: np.ndarray,
                 plot_stage: np.ndarray, scans: float) -> None:
-        """Learn from a window's plots: ``plot_stage`` 0/1 = taken by a confirmed track (a target's
-        plot), 2 = by a tentative track, -1 = by none (false, or a new aircraft's first plot)."""
-        from skytrack.tracker.clutter_map import observe_kernel
-
-        confirmed = plot_stage == 0
-        confirmed |= plot_stage == 1
-        count_codes(confirmed, plot_stage == -1, mode3a, mode_c, self.code_counts[s])
-        clutter_map = self.maps[s]
-        if clutter_map is not None:
-            observe_kernel(range_m, azimuth, ~confirmed, scans, clutter_map.memory_scans, *clutter_map.arguments())
+        """Learn from a window's plots (numpy reference of the learning in
+        :func:`~skytrack.tracker.window_kernels.initiate_manage_cv`): ``plot_stage`` 0/1 = taken by
+        a confirmed track (a target's plot), 2 = by a tentative track, -1 = by none (false, or a new
+        aircraft's first plot)."""
+        counts = self.code_counts[s]
+        for base, rows in ((TN, (plot_stage == 0) | (plot_stage == 1)), (CN, plot_stage == -1)):
+            counts[base] += rows.sum()
+            counts[base + 1] += (rows & (mode3a >= 0)).sum()
+            counts[base + 2] += (rows & np.isfinite(mode_c)).sum()
+        self.maps[s].observe(range_m, azimuth, plot_stage, scans)

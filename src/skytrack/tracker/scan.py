@@ -186,7 +186,7 @@ class ScanProcessor(CompiledStages):
         return converted
 
     def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
-        self._window_evidence(s, plots)
+        self._window_evidence(s)
         if self.fused[s] and self.schedule.rotating[s] and set(self.bank.column_storage) == self._standard_columns:
             self._process_compiled(s, w_start, w_end, plots, converted)
             return
@@ -229,10 +229,11 @@ class ScanProcessor(CompiledStages):
             if not compiled_window:
                 self.lifecycle.record_events(bank, hit, expected, w_end, self.scoring.log_miss[s])
         self.stats["plots_assigned"] += int(plot_used.sum())
-        self._learn(s, w_start, w_end, plots, plot_stage)
         if compiled_window and set(bank.column_storage) == self._standard_columns:
-            self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_end)
+            self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_start,
+                                           w_end, plot_stage)
             return
+        self._learn(s, w_start, w_end, plots, plot_stage)
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         if compiled_window:
             self._manage_compiled(s, hit, expected, w_end)
@@ -305,8 +306,9 @@ class ScanProcessor(CompiledStages):
         ln N(nu; 0, S) (:mod:`skytrack.tracker.evidence`)."""
         bank = self.bank
         ssr = ssr_log_ratio_reference(plots.mode3a[pj], plots.mode_c_m[pj], bank.mode3a[ti], bank.alt_m[ti],
-                                      plots.time[pj] - bank.t[ti], self._evidence[1])
-        return self.scoring.log_pd[s] - self._evidence[0][pj] + ssr
+                                      plots.time[pj] - bank.t[ti], self._evidence[0])
+        log_clutter = self.scoring.maps[s].log_density(plots.range_m[pj], plots.azimuth[pj])
+        return self.scoring.log_pd[s] - log_clutter + ssr
 
     def _measurement(self, s, model: ConvertedPositionModel, pj, plots: PlotBatch, position, covariance):
         dim = self.dim

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from skytrack.association.kernels import assign_clusters
+from skytrack.tracker.clutter_map import log_density_at
 from skytrack.tracker.evidence import LOG_2PI, ssr_log_ratio
 from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 
@@ -25,7 +26,7 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, plot_log_clutter, llr_cost,
+             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost,
              log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, logdet, position, covariance, candidates = gate_stage_cv(
@@ -33,8 +34,8 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
     gain, cost, offered, miss_cost = pair_evidence(
-        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, plot_log_clutter, ssr, plot_time,
-        plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
+        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
+        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
     pick = offered[np.flatnonzero(chosen)]
     rows = np.empty(len(pick), np.int64)
@@ -50,8 +51,9 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
 
 
 @njit(cache=True, nogil=True)
-def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, log_pd, log_miss, plot_log_clutter, ssr,
-                  plot_time, plot_mode3a, plot_mode_c, mode3a, alt_m, t):
+def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, log_pd, log_miss, clutter_grid,
+                  clutter_params, clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c,
+                  mode3a, alt_m, t):
     """Per gated pair: the score gain of a hit, the assignment cost, the pairs offered to the
     assignment (indices) and the cost of a miss per track (see the module docstring).
 
@@ -66,7 +68,9 @@ def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, l
         row = tracks[kt[c]]
         j = free[kp[c]]
         evidence = ssr_log_ratio(plot_mode3a[j], plot_mode_c[j], mode3a[row], alt_m[row], plot_time[j] - t[row], ssr)
-        gain[c] = log_pd - 0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI) - plot_log_clutter[j] + evidence
+        log_clutter, _, _ = log_density_at(plot_range[j], plot_azimuth[j], clutter_grid, clutter_params,
+                                           clutter_log_area)
+        gain[c] = log_pd - 0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI) - log_clutter + evidence
         cost[c] = -2.0 * (gain[c] - log_miss) if llr_cost else d2[c]
     miss_cost = np.full(len(tracks), gate_miss)
     if not llr_cost:
@@ -91,7 +95,7 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
-              plot_mode_s, plot_iff, plot_log_clutter, llr_cost, log_pd, log_miss, ssr, score, score_max, plot_stage):
+              plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max, plot_stage):
     """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
     ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
@@ -137,7 +141,7 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
             plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s,
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, plot_log_clutter, llr_cost,
+            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost,
             log_pd, log_miss, ssr, score, score_max)
         candidates += found
         for c in range(len(rows)):

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from skytrack.tracker.clutter_map import observe_kernel
+from skytrack.tracker.evidence import count_codes
 from skytrack.tracker.kernels import _max_eig_sym, _predict_cv_row
 
 _BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
@@ -132,13 +134,18 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
                        plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                        max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
                        n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
-                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop):
+                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, plot_range, plot_azimuth,
+                       plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts):
     """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
     one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
     window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
     kept rows (:meth:`~skytrack.tracker.bank.TrackBank.keep`).  The arrays must have room for
     ``size + len(new_plots)`` rows; without ``with_psi`` the psi arrays are not touched.
+    First the clutter map and the code counts learn from the window's plots
+    (:meth:`skytrack.tracker.evidence.TrackScoring.observe`).
     Returns the new size and the counts (misses, confirmed, hopeless, lost)."""
+    count_codes(plot_stage, plot_mode3a, plot_mode_c, code_counts)
+    observe_kernel(plot_range, plot_azimuth, plot_stage, scans, clutter_grid, clutter_params, clutter_log_area)
     n = 2 * dim
     for c in range(len(new_plots)):
         j = new_plots[c]
