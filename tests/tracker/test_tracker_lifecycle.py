@@ -93,7 +93,7 @@ def test_misses_coasting_and_deletion(sim, radar1, target, companion, delete_mis
     (deleted after ``delete_misses`` consecutive misses); another target keeps every scan busy."""
     missed = {("a", 10), ("a", 11)} | {("a", k) for k in range(20, 40)}
     plots = sim.radar_plots(radar1, [target, companion], 0.0, T_END, np.random.default_rng(3), missed=missed)
-    tracks, tracker = run(sim, radar1, plots, delete_misses=delete_misses)
+    tracks, tracker = run(sim, radar1, plots, delete_misses=delete_misses, report_max_misses=0)
     mapping = sim.assign_tracks_to_targets(tracks, [target, companion])
     assert sorted(mapping.values()) == ["a", "b"]
     track_a = tracks[tracks["track_id"] == [k for k, v in mapping.items() if v == "a"][0]]
@@ -117,7 +117,7 @@ def test_misses_are_counted_when_a_scan_has_no_plot_at_all(sim, radar1, target):
     missed = {("a", 10), ("a", 11)} | {("a", k) for k in range(20, 30)}
     # plots go on until scan 39, so the recording covers the silent scans 20-29
     plots = sim.radar_plots(radar1, [target], 0.0, 160.0, np.random.default_rng(3), missed=missed)
-    tracks, _ = run(sim, radar1, plots)
+    tracks, _ = run(sim, radar1, plots, report_max_misses=0)
     first = tracks[tracks["track_id"] == 1]
     at = dict(zip(first["time"], zip(first["status"], first["n_misses"])))
     assert at[44.0] == ("coasting", 1) and at[48.0] == ("coasting", 2)
@@ -167,3 +167,30 @@ def test_track_ids_are_unique_and_never_reused(sim, radar1):
     assert tracker.stats["tracks_deleted"] >= 5  # all but possibly the last left the picture
     mapping = sim.assign_tracks_to_targets(tracks, targets)
     assert sorted(mapping.values()) == sorted(t.name for t in targets)
+
+
+def test_a_track_is_reported_only_while_it_probably_exists(sim, radar1, target, companion):
+    """With report_max_misses 3 the track of a target missed from scan 20 on is reported with 1
+    and 2 misses, hidden from its third, and deleted at its fifth (delete_misses) as before."""
+    missed = {("a", k) for k in range(20, 40)}
+    plots = sim.radar_plots(radar1, [target, companion], 0.0, T_END, np.random.default_rng(3), missed=missed)
+    shown, _ = run(sim, radar1, plots, report_max_misses=3)
+    everything, tracker = run(sim, radar1, plots, report_max_misses=0)
+    assert shown["n_misses"].max() == 2 and everything["n_misses"].max() == 4
+    assert len(everything) - len(shown) == 2  # the instants with 3 and 4 misses
+    assert tracker.stats["tracks_deleted"] == 1
+
+
+def test_a_track_leaving_coverage_ends_at_once(sim, radar1, companion):
+    """A target flying out through the instrumented range: its track is deleted in the first
+    window that predicts it outside, without coasting for delete_misses scans."""
+    leaving = sim.Target("a", (0.0, 230_000.0, 8000.0), (0.0, 250.0, 0.0))
+    plots = sim.radar_plots(radar1, [leaving, companion], 0.0, 160.0, np.random.default_rng(2))
+    plots = plots[plots["range_m"] <= radar1.max_range_m].reset_index(drop=True)
+    tracks, tracker = run(sim, radar1, plots, report_max_misses=0)
+    assert tracker.stats["tracks_deleted"] == 1
+    mapping = sim.assign_tracks_to_targets(tracks, [leaving, companion])
+    track_a = tracks[tracks["track_id"] == [k for k, v in mapping.items() if v == "a"][0]]
+    assert track_a["n_misses"].max() <= 1
+    last_plot = plots.loc[plots["truth_id"] == "a", "time"].max()
+    assert track_a["time"].max() <= last_plot + 2 * radar1.period

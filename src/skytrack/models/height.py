@@ -19,6 +19,8 @@ The plot is placed at the middle of ``[h_lo, h_hi]`` with the standard deviation
 distribution over it, ``(h_hi - h_lo) / sqrt(12)`` (never below ``min_sigma_m``); the
 conversion carries that spread into the plot's range uncertainty through the projection's
 derivative.  The placed height never exceeds the slant range, so no plot lands on the antenna.
+
+:func:`radar_horizon_m` is the same horizon as a ground distance, for the tracker's coverage test.
 """
 
 from __future__ import annotations
@@ -44,3 +46,14 @@ def bounded_height(slant_range_m: np.ndarray, sensor_alt_m: float, max_elevation
     high = np.sqrt(r * r + geometric * geometric + 2.0 * r * geometric * sin_e) - EARTH_RADIUS_M
     high = np.maximum(np.minimum(high, max_altitude_m), low)
     return 0.5 * (low + high), np.maximum((high - low) / math.sqrt(12.0), min_sigma_m)
+
+
+def radar_horizon_m(sensor_alt_m, target_alt_m) -> np.ndarray:
+    """Ground distance (m) to the 4/3-Earth radar horizon: the sum of both tangent lengths on the
+    enlarged sphere; infinite where the target height is unknown (NaN)."""
+    r_eff = REFRACTION_K * EARTH_RADIUS_M
+    hs = np.maximum(np.asarray(sensor_alt_m, dtype=float), 0.0)
+    ht = np.asarray(target_alt_m, dtype=float)
+    known = np.isfinite(ht)
+    ht = np.maximum(np.where(known, ht, 0.0), 0.0)
+    return np.where(known, np.sqrt(2.0 * r_eff * hs + hs * hs) + np.sqrt(2.0 * r_eff * ht + ht * ht), np.inf)

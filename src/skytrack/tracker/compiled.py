@@ -55,13 +55,14 @@ class CompiledStages:
         plot_used = np.zeros(len(plots), dtype=bool)
         expected = hit
         plot_stage = np.full(len(plots), -1, np.int8)
+        outside = hit
         if n_tracks:
-            t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
+            t_ref, expected, nearby, outside = self._expect_compiled(s, w_start, w_end)
             status_now = np.where(nearby, bank.status, -1).astype(np.int8)
             self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage)
         self.stats["plots_assigned"] += int(plot_used.sum())
-        self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_start, w_end,
-                                       plot_stage)
+        self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, outside,
+                                       w_start, w_end, plot_stage)
 
     def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage) -> None:
         storage, columns = self.bank.storage, self.bank.column_storage
@@ -125,15 +126,15 @@ class CompiledStages:
         schedule = self.schedule
         storage = bank.storage
         columns = bank.column_storage
-        return expect_rotating(storage.x, columns["t"], columns["z_hint"], len(bank), self.dim, self.order,
-                               0.5 * (w_start + w_end), w_start, w_end, float(schedule.phase[s]),
+        return expect_rotating(storage.x, columns["t"], columns["z_hint"], columns["alt_m"], len(bank), self.dim,
+                               self.order, 0.5 * (w_start + w_end), w_start, w_end, float(schedule.phase[s]),
                                float(schedule.period[s]), self._rotation[s], self._origin[s],
-                               float(sensor.max_range_m or 0.0), self._cover_xy, self._cover_r2, self._cover_all,
-                               SECTOR_MARGIN)
+                               float(sensor.max_range_m or 0.0), float(sensor.alt_m or 0.0), self._cover_xy,
+                               self._cover_r2, self._cover_alt, self._cover_all, SECTOR_MARGIN)
 
     def _initiate_manage_compiled(self, s: int, plots: PlotBatch, converted: ConvertedPlots, new: np.ndarray,
-                                  hit: np.ndarray, expected: np.ndarray, w_start: float, w_end: float,
-                                  plot_stage: np.ndarray) -> None:
+                                  hit: np.ndarray, expected: np.ndarray, outside: np.ndarray, w_start: float,
+                                  w_end: float, plot_stage: np.ndarray) -> None:
         """Initiation, events, life cycle and compaction in one compiled call (standard columns only)."""
         bank = self.bank
         bank.reserve(len(bank) + len(new))
@@ -151,7 +152,7 @@ class CompiledStages:
             columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
             columns["iff"], columns["score"], columns["score_max"], *self._score_settings(s), plots.range_m,
             plots.azimuth, plot_stage, (w_end - w_start) / self.scoring.periods[s], *self.scoring.clutter_arguments(s),
-            self.scoring.code_counts[s],
+            self.scoring.code_counts[s], outside,
         )
         bank.size = size
         self.next_track_id += len(new)
@@ -161,7 +162,8 @@ class CompiledStages:
         self.stats["tentative_dropped"] += hopeless
         self.stats["tracks_deleted"] += lost
 
-    def _manage_compiled(self, s: int, hit: np.ndarray, expected: np.ndarray, w_end: float) -> None:
+    def _manage_compiled(self, s: int, hit: np.ndarray, expected: np.ndarray, outside: np.ndarray,
+                         w_end: float) -> None:
         bank = self.bank
         cfg = self.config.lifecycle
         columns = bank.columns
@@ -169,7 +171,7 @@ class CompiledStages:
             hit, expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
             bank.storage.P, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_misses"], columns["last_event"], columns["confirmed_at"], columns["score"],
-            columns["score_max"], *self._score_settings(s),
+            columns["score_max"], *self._score_settings(s), outside,
         )
         self.stats["misses"] += misses
         self.stats["tracks_confirmed"] += confirmed

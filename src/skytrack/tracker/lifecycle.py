@@ -6,6 +6,8 @@ a miss is an expected plot that did not come; it changes no state).  A tentative
 confirmed when ``confirm_m`` of its last ``confirm_n`` events were hits and dropped as soon
 as that cannot happen any more; a confirmed track is deleted after ``delete_misses``
 consecutive misses or when its position standard deviation exceeds ``max_position_sigma_m``.
+With the track score (:mod:`skytrack.tracker.evidence`) the score's thresholds decide instead
+of the counts.  A track outside every radar's coverage (range, radar horizon) is deleted.
 """
 
 from __future__ import annotations
@@ -57,15 +59,20 @@ class Lifecycle:
         bank.score[:n][missed] += log_miss
         self.stats["misses"] += int(missed.sum())
 
-    def manage(self, bank: TrackBank, score_logic: bool = False, confirm_score: float = np.inf,
-               drop_score: float = -np.inf, delete_drop: float = np.inf) -> None:
+    def manage(self, bank: TrackBank, outside: np.ndarray | None = None, score_logic: bool = False,
+               confirm_score: float = np.inf, drop_score: float = -np.inf, delete_drop: float = np.inf) -> None:
         """Confirm, drop hopeless tentative tracks, delete lost confirmed ones: by hit counts, or
-        with ``score_logic`` by the track score (thresholds of :mod:`skytrack.tracker.evidence`)."""
+        with ``score_logic`` by the track score (thresholds of :mod:`skytrack.tracker.evidence`).
+        Tracks flagged ``outside`` every radar's coverage (the rows before this window's new
+        tracks) are deleted at once."""
         cfg = self.config
         if len(bank) == 0:
             return
+        gone = np.zeros(len(bank), dtype=bool)
+        if outside is not None:
+            gone[: len(outside)] = outside
         hits = np.bitwise_count(bank.hit_bits).astype(np.int64)
-        tentative = bank.status == TENTATIVE
+        tentative = (bank.status == TENTATIVE) & ~gone
         confirm = tentative & ((bank.score >= confirm_score) if score_logic else (hits >= cfg.confirm_m))
         bank.status[confirm] = CONFIRMED
         bank.confirmed_at[confirm] = bank.t[confirm]
@@ -77,7 +84,8 @@ class Lifecycle:
         pos_cov = P[:, self.pos[:, None], self.pos]
         too_uncertain = np.sqrt(np.maximum(max_eigenvalue_sym(pos_cov), 0)) > cfg.max_position_sigma_m
         faded = (bank.score_max - bank.score >= delete_drop) if score_logic else (bank.n_misses >= cfg.delete_misses)
-        lost = (bank.status == CONFIRMED) & (faded | too_uncertain)
+        lost = (bank.status == CONFIRMED) & (faded | too_uncertain | gone)
+        hopeless |= (bank.status == TENTATIVE) & gone
         self.stats["tentative_dropped"] += int(hopeless.sum())
         self.stats["tracks_deleted"] += int(lost.sum())
         bank.keep(~(hopeless | lost))

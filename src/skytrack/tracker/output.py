@@ -1,7 +1,8 @@
 """Track output: output instants and the rows of the tracks table (docs/formats.md).
 
 Confirmed tracks are reported at output instants — the end of every scan of the first
-radar, or every ``output_interval_s`` — predicted to the instant.  Each instant keeps a compact record
+radar, or every ``output_interval_s`` — predicted to the instant, while they probably still
+exist (fewer than ``report_max_misses`` consecutive misses: :func:`reported_rows`).  Each instant keeps a compact record
 (:func:`instant_record`); one table is built per :meth:`~skytrack.tracker.tracker.Tracker.drain`
 (:func:`build_table`), with one geodetic conversion and one identity decoding for all its rows;
 :func:`tracks_frame` makes it a DataFrame, :func:`tracks_arrow` an Arrow table for a writer
@@ -21,17 +22,32 @@ import pandas as pd
 from skytrack.core.plots import icao24_text, iff_text, mode3a_text
 from skytrack.core.tracks import EMPTY_COLUMNS, covariance_columns
 from skytrack.geo.wgs84 import enu_to_geodetic_closed_form
-from skytrack.tracker.bank import TrackBank
+from skytrack.tracker.bank import CONFIRMED, TrackBank
 
 
 @dataclass
 class OutputConfig:
+    """``report_max_misses``: a confirmed track is reported only while it has fewer consecutive
+    misses than this (it probably still exists; 0 reports every confirmed track until deleted)."""
+
     output_interval_s: float | None = None
     full_covariance: bool = False
+    report_max_misses: int = 3
 
     def __post_init__(self) -> None:
         if self.output_interval_s is not None and not self.output_interval_s > 0:
             raise ValueError(f"output_interval_s must be > 0, got {self.output_interval_s}")
+        if self.report_max_misses < 0:
+            raise ValueError(f"report_max_misses must be >= 0, got {self.report_max_misses}")
+
+
+def reported_rows(bank: TrackBank, max_misses: int) -> np.ndarray:
+    """The bank rows reported at an output instant: confirmed tracks with fewer than
+    ``max_misses`` consecutive misses (every confirmed track when it is 0)."""
+    reported = bank.status == CONFIRMED
+    if max_misses > 0:
+        reported &= bank.n_misses < max_misses
+    return np.flatnonzero(reported)
 
 
 class OutputClock:

@@ -155,6 +155,7 @@ class ScanProcessor(CompiledStages):
         bounded = [r for r in radars if r.max_range_m and not r.is_moving]
         self._cover_xy = np.array([r.position[:2] for r in bounded], dtype=float).reshape(-1, 2)
         self._cover_r2 = np.array([r.max_range_m**2 for r in bounded], dtype=float)
+        self._cover_alt = np.array([r.alt_m or 0.0 for r in bounded], dtype=float)
 
     def convert(self, plots: PlotBatch) -> ConvertedPlots:
         """Common-frame positions of a chunk of plots (all sensors), at their Mode C altitude or the
@@ -196,14 +197,14 @@ class ScanProcessor(CompiledStages):
         plot_used = np.zeros(len(plots), dtype=bool)
         plot_stage = np.full(len(plots), -1, np.int8)
         compiled_window = self.fused[s] and self.schedule.rotating[s]
-        expected = hit
+        expected = outside = hit
         if n_tracks:
             if compiled_window:
-                t_ref, expected, nearby = self._expect_compiled(s, w_start, w_end)
+                t_ref, expected, nearby, outside = self._expect_compiled(s, w_start, w_end)
             else:
                 position = self._positions_at(0.5 * (w_start + w_end))
-                t_ref, expected, nearby = self.schedule.expectations(s, w_start, w_end, position, bank.last_event,
-                                                                     bank.created)
+                t_ref, expected, nearby, outside = self.schedule.expectations(
+                    s, w_start, w_end, position, bank.last_event, bank.created, bank.alt_m)
             status = np.where(nearby, bank.status, -1)
             confirmed = status == CONFIRMED
             # confirmed tracks first; then confirmed quiet tracks that found nothing try the
@@ -230,15 +231,15 @@ class ScanProcessor(CompiledStages):
                 self.lifecycle.record_events(bank, hit, expected, w_end, self.scoring.log_miss[s])
         self.stats["plots_assigned"] += int(plot_used.sum())
         if compiled_window and set(bank.column_storage) == self._standard_columns:
-            self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, w_start,
-                                           w_end, plot_stage)
+            self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, outside,
+                                           w_start, w_end, plot_stage)
             return
         self._learn(s, w_start, w_end, plots, plot_stage)
         self._initiate(plots.take(~plot_used), converted.position[~plot_used], converted.covariance[~plot_used])
         if compiled_window:
-            self._manage_compiled(s, hit, expected, w_end)
+            self._manage_compiled(s, hit, expected, outside, w_end)
         else:
-            self.lifecycle.manage(bank, *self._score_settings(s)[1:])
+            self.lifecycle.manage(bank, outside, *self._score_settings(s)[1:])
 
     def _positions_at(self, t: float) -> np.ndarray:
         """Deterministic 3-D position extrapolation of every track (no covariance), for geometry."""

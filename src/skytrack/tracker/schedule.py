@@ -29,6 +29,7 @@ from skytrack.core.plots import PlotBatch
 from skytrack.core.validate import require_positive
 from skytrack.geo.polar import azimuth_of
 from skytrack.geo.sensors import SensorSet
+from skytrack.models.height import radar_horizon_m
 
 #: plots needed before the beam phase of a sensor is estimated from data
 PHASE_MIN_PLOTS = 20
@@ -235,9 +236,10 @@ class Schedule:
 
     # ------------------------------------------------------------------ expectations
     def expectations(self, s: int, w_start: float, w_end: float, position: np.ndarray, last_event: np.ndarray,
-                     created: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reference time of every track in this window, whether a plot is expected, and whether
-        the track is near enough to the swept sector to take part in association.
+                     created: np.ndarray, altitude: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Reference time of every track in this window, whether a plot is expected, whether the
+        track is near enough to the swept sector to take part in association, and whether it is
+        outside every radar's coverage (range, and the radar horizon at its Mode C ``altitude``).
 
         ``position`` is each track's 3-D position extrapolated to the window's middle.
         """
@@ -263,13 +265,18 @@ class Schedule:
             t_ref = np.full(count, mid)
             expected = w_end - np.maximum(last_event, created) >= revisit
             nearby = np.ones(count, dtype=bool)
-        if sensor.max_range_m:
-            # out of this sensor's range no plot is due, unless no sensor covers the track:
-            # then the misses pile up and the track is deleted (it has left the coverage)
-            expected &= (ground <= sensor.max_range_m) | ~self.in_any_coverage(position)
-        return t_ref, expected, nearby
+        outside = np.zeros(count, dtype=bool)
+        if sensor.max_range_m and not sensor.is_moving:
+            # out of this sensor's coverage no plot is due; a track that no radar covers any more
+            # has left the picture and is deleted (outside)
+            beyond = (ground > sensor.max_range_m) | (ground > radar_horizon_m(sensor.alt_m or 0.0, altitude))
+            covered = self.in_any_coverage(position, altitude)
+            expected &= ~beyond | ~covered
+            outside = beyond & ~covered
+        return t_ref, expected, nearby, outside
 
-    def in_any_coverage(self, position: np.ndarray) -> np.ndarray:
+    def in_any_coverage(self, position: np.ndarray, altitude: np.ndarray) -> np.ndarray:
+        """Whether some radar covers each position (its range and horizon at ``altitude``)."""
         inside = np.zeros(len(position), dtype=bool)
         for sensor in self.sensors.sensors:
             if not sensor.is_radar:
@@ -277,5 +284,6 @@ class Schedule:
             if not sensor.max_range_m or sensor.is_moving:
                 return np.ones(len(position), dtype=bool)
             offset = position[:, :2] - sensor.position[:2]
-            inside |= np.einsum("ki,ki->k", offset, offset) <= sensor.max_range_m**2
+            reach = np.minimum(sensor.max_range_m, radar_horizon_m(sensor.alt_m or 0.0, altitude))
+            inside |= np.einsum("ki,ki->k", offset, offset) <= reach**2
         return inside

@@ -24,7 +24,7 @@ from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
-from skytrack.tracker.output import OutputClock, build_table, instant_record, tracks_arrow, tracks_frame
+from skytrack.tracker.output import OutputClock, build_table, instant_record, reported_rows, tracks_arrow, tracks_frame
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
 from skytrack.tracker.window_kernels import report_cv
@@ -194,7 +194,7 @@ class Tracker:
                 if record is not None:
                     self.outputs.append(record)
                 continue
-            rows = np.flatnonzero(self.bank.status == CONFIRMED)
+            rows = reported_rows(self.bank, self.config.output.report_max_misses)
             if len(rows):
                 self.outputs.append(self._rows_at(instant, rows))
 
@@ -209,7 +209,7 @@ class Tracker:
                           self.scan._no_psi, with_psi, self.scan.fused_q,
                           float(self.filter.scale) if with_psi else 1.0, full, columns["status"], columns["track_id"],
                           columns["n_updates"], columns["n_misses"], columns["alt_m"], columns["z_hint"],
-                          columns["mode3a"], columns["icao24"], columns["iff"])
+                          columns["mode3a"], columns["icao24"], columns["iff"], self.config.output.report_max_misses)
         if len(rows) == 0:
             return None
         record = {"time": np.full(len(rows), instant), "track_id": track_id, "x": x, "var": var,

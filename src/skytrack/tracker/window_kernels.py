@@ -16,20 +16,25 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from skytrack.geo.polar import EARTH_RADIUS_M
+from skytrack.models.height import REFRACTION_K
 from skytrack.tracker.clutter_map import observe_kernel
 from skytrack.tracker.evidence import count_codes
 from skytrack.tracker.kernels import _max_eig_sym, _predict_cv_row
 
 _BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
+_TWO_K_R = 2.0 * REFRACTION_K * EARTH_RADIUS_M
 
 
 @njit(cache=True, nogil=True)
-def expect_rotating(x, t, z_hint, n, dim, order, mid, w_start, w_end, phase, period, rot, origin, max_range,
-                    cover_xy, cover_r2, cover_all, sector_margin):
-    """Reference time, expected and nearby flags of the first ``n`` bank rows."""
+def expect_rotating(x, t, z_hint, alt_m, n, dim, order, mid, w_start, w_end, phase, period, rot, origin, max_range,
+                    sensor_alt, cover_xy, cover_r2, cover_alt, cover_all, sector_margin):
+    """Reference time, expected, nearby and outside-every-coverage flags of the first ``n`` bank
+    rows (coverage: range, and the radar horizon for tracks with a Mode C altitude)."""
     t_ref = np.empty(n)
     expected = np.empty(n, np.bool_)
     nearby = np.empty(n, np.bool_)
+    outside = np.zeros(n, np.bool_)
     point = np.empty(3)
     local = np.empty(3)
     margin = sector_margin * period
@@ -60,29 +65,42 @@ def expect_rotating(x, t, z_hint, n, dim, order, mid, w_start, w_end, phase, per
         if not exp:
             shifted = tr - period if late else tr
             tr = min(max(shifted, w_start), w_end)
-        if max_range > 0.0 and ground > max_range:
+        if max_range > 0.0 and (ground > max_range or ground > _horizon(sensor_alt, alt_m[k])):
             covered = cover_all
             for r in range(len(cover_r2)):
                 dx = point[0] - cover_xy[r, 0]
                 dy = point[1] - cover_xy[r, 1]
-                if dx * dx + dy * dy <= cover_r2[r]:
+                if dx * dx + dy * dy <= min(cover_r2[r], _horizon(cover_alt[r], alt_m[k]) ** 2):
                     covered = True
             exp = exp and not covered
+            outside[k] = not covered
         t_ref[k] = tr
         expected[k] = exp
-    return t_ref, expected, nearby
+    return t_ref, expected, nearby, outside
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _horizon(sensor_alt, target_alt):
+    """4/3-Earth radar horizon distance (m); infinite for an unknown target height
+    (:func:`skytrack.models.height.radar_horizon_m`)."""
+    if not target_alt == target_alt:
+        return np.inf
+    hs = max(sensor_alt, 0.0)
+    ht = max(target_alt, 0.0)
+    return np.sqrt(_TWO_K_R * hs + hs * hs) + np.sqrt(_TWO_K_R * ht + ht * ht)
 
 
 @njit(cache=True, nogil=True)
 def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t, status,
                       hit_bits, n_events, n_misses, last_event, confirmed_at, score, score_max, log_miss, score_logic,
-                      confirm_score, drop_score, delete_drop):
+                      confirm_score, drop_score, delete_drop, outside):
     """Events of this window, then the life-cycle decisions; returns the keep mask and counts
     (misses, confirmed, hopeless, lost).  ``hit``/``expected`` cover the rows that existed before
     the window's new tracks; the decisions cover all ``len(status)`` rows.  A miss adds
     ``log_miss`` to the score; with ``score_logic`` a tentative track is confirmed at
     ``confirm_score`` and dropped below ``drop_score``, a confirmed one deleted when its score is
-    ``delete_drop`` below its maximum (else M-of-N and ``delete_misses``)."""
+    ``delete_drop`` below its maximum (else M-of-N and ``delete_misses``).  A track ``outside``
+    every radar's coverage is deleted at once (counted in ``lost``)."""
     mask = np.uint32((1 << confirm_n) - 1)
     misses = 0
     for k in range(len(hit)):
@@ -102,6 +120,13 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
     dim = len(pos_index)
     block = np.empty((dim, dim))
     for k in range(rows):
+        if k < len(outside) and outside[k]:
+            keep[k] = False
+            if status[k] == 1:
+                lost += 1
+            else:
+                hopeless += 1
+            continue
         bits = hit_bits[k]
         hits = 0
         while bits:
@@ -135,7 +160,7 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
                        max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
                        n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
                        score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, plot_range, plot_azimuth,
-                       plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts):
+                       plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside):
     """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
     one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
     window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
@@ -184,7 +209,7 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
     keep, misses, confirmed, hopeless, lost = record_and_manage(
         hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t[:rows], status[:rows],
         hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows], score[:rows],
-        score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop)
+        score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop, outside)
     m = 0
     for k in range(rows):
         if not keep[k]:
@@ -221,19 +246,20 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
 
 @njit(cache=True, nogil=True)
 def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, status, track_id, n_updates,
-              n_misses, alt_m, z_hint, mode3a, icao24, iff):
-    """One output instant of a constant-velocity Gaussian bank: every confirmed track predicted to
-    ``instant`` (the filter's process noise, psi included) and its record columns
-    (:func:`skytrack.tracker.output.instant_record`)."""
+              n_misses, alt_m, z_hint, mode3a, icao24, iff, max_misses):
+    """One output instant of a constant-velocity Gaussian bank: every reported track
+    (:func:`skytrack.tracker.output.reported_rows`: confirmed, fewer than ``max_misses``
+    consecutive misses unless that is 0) predicted to ``instant`` (the filter's process noise,
+    psi included) and its record columns (:func:`skytrack.tracker.output.instant_record`)."""
     n = x.shape[1]
     count = 0
     for k in range(size):
-        if status[k] == 1:
+        if status[k] == 1 and (max_misses <= 0 or n_misses[k] < max_misses):
             count += 1
     rows = np.empty(count, np.int64)
     m = 0
     for k in range(size):
-        if status[k] == 1:
+        if status[k] == 1 and (max_misses <= 0 or n_misses[k] < max_misses):
             rows[m] = k
             m += 1
     x_out = np.empty((count, n))
