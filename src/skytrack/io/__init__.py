@@ -6,7 +6,9 @@ validates with vectorised checks and raises :class:`InputError` naming the file,
 (and CSV line) and column of the first problem; with ``lenient=True`` it skips and counts
 bad rows and returns ``(data, ReadReport)``.  Dtypes follow one policy, described in
 :mod:`skytrack.io.schema` (float64, int64 / nullable Int64, pandas ``str`` text, bool;
-absent optional columns stay absent).  Writers validate the same way, put the known
+absent optional columns stay absent).  :func:`read_state_vectors` reads recorded
+aircraft state vectors (the traffic library's or the OpenSky database's layout, also
+JSON lines) into SI units for the simulator.  Writers validate the same way, put the known
 columns in FORMATS.md order followed by the extras, and create parent directories.
 """
 
@@ -32,6 +34,7 @@ from skytrack.io.schema import (
     TableSchema,
 )
 from skytrack.io.sensors import read_sensors, sensor_set_from_dict, write_sensors
+from skytrack.io.state_vectors import STATE_COLUMNS, read_state_vectors
 from skytrack.io.tables import read_table, table_format, write_table
 from skytrack.io.tracks import read_tracks, write_tracks
 from skytrack.io.truth import DEFAULT_MAX_GAP_S, read_truth, write_truth
@@ -46,6 +49,8 @@ __all__ = [
     "sensor_set_from_dict",
     "read_truth",
     "write_truth",
+    "read_state_vectors",
+    "STATE_COLUMNS",
     "read_tracks",
     "write_tracks",
     "read_adsb",
