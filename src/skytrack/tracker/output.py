@@ -32,7 +32,7 @@ class OutputConfig:
 
     output_interval_s: float | None = None
     full_covariance: bool = False
-    report_max_misses: int = 3
+    report_max_misses: int = 4
 
     def __post_init__(self) -> None:
         if self.output_interval_s is not None and not self.output_interval_s > 0:
