@@ -29,6 +29,9 @@ OPTION_FIELDS = {
     "default_altitude": "default_altitude_m",
     "output_interval": "output_interval_s",
     "full_covariance": "full_covariance",
+    "track_logic": "track_logic",
+    "false_tracks_per_hour": "false_tracks_per_hour",
+    "report_max_misses": "report_max_misses",
 }
 
 

@@ -16,5 +16,8 @@ CONFIRM_M = 3
 CONFIRM_N = 4
 DELETE_MISSES = 5
 INIT = "one-point"
+TRACK_LOGIC = "score"
+FALSE_TRACKS_PER_HOUR = 1.0
+REPORT_MAX_MISSES = 4
 #: plots per chunk of ``skytrack track`` (mirrors :data:`skytrack.app.run.DEFAULT_CHUNK_ROWS`)
 CHUNK_ROWS = 200_000

@@ -112,18 +112,27 @@ def main(
 @app.command()
 @reports_input_errors
 def simulate(
-    scenario: Annotated[str, typer.Argument(help="Scenario YAML file, or the name of a bundled scenario (demo, two_radars, radar3d, crossing).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder for plots, truth and sensors.json.")],
+    scenario: Annotated[Optional[str], typer.Argument(help="Scenario YAML file, or the name of a bundled scenario (demo, two_radars, radar3d, crossing, recorded_switzerland, ...).")] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder for plots, truth and sensors.json (and adsb for recorded traffic).")] = ...,
+    scenario_option: Annotated[Optional[str], typer.Option("--scenario", help="The scenario, as an option (same as the argument).")] = None,
+    trajectories: Annotated[Optional[str], typer.Option("--trajectories", help="Recorded state vectors flown as truth (Parquet, CSV or JSON lines of the traffic or OpenSky layout; or a bundled recording's name): replaces the scenario's recorded file.")] = None,
+    start: Annotated[Optional[str], typer.Option("--start", help="Time 0 on the recording: ISO-8601 UTC (2018-08-01T11:20:00Z) or seconds after its first time stamp.")] = None,
+    duration: Annotated[Optional[float], typer.Option("--duration", help="Simulated time span (s), replacing the scenario's duration_s.")] = None,
     seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise (default: the scenario's).")] = None,
     fmt: Annotated[str, typer.Option("--format", help="Table format: parquet or csv.")] = "parquet",
 ) -> None:
-    """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md)."""
+    """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md); recorded traffic also gives ADS-B reports."""
     from skytrack.app.simulate import TABLE_FORMATS, run_simulation, write_simulation
 
     if fmt not in TABLE_FORMATS:
         _fail(f"--format must be parquet or csv, got {fmt!r}")
+    if (scenario is None) == (scenario_option is None):
+        _fail("give the scenario once: as the argument or as --scenario")
+    if duration is not None and not duration > 0.0:
+        _fail(f"--duration must be > 0, got {duration!r}")
     with _progress() as progress:
-        result = run_simulation(scenario, seed, progress=progress)
+        result = run_simulation(scenario or scenario_option, seed, progress=progress, trajectories=trajectories,
+                                start=start, duration=duration)
     paths = write_simulation(result, out, fmt)
     _print_simulation_summary(result, paths)
 
@@ -136,8 +145,29 @@ def _print_simulation_summary(result, paths: dict) -> None:
     table.add_row("sensors", ", ".join(result.sensors.names))
     table.add_row("duration", f"{result.scenario.duration_s:.0f} s")
     table.add_row("plots", f"{len(plots)} ({false_plots} false)")
+    if result.recorded is not None:
+        recorded = result.recorded
+        table.add_row("recorded window", f"{recorded.epoch_utc} + {result.scenario.duration_s:g} s: "
+                                         f"{len(recorded.trajectories)} segments")
+        if result.adsb is not None:
+            table.add_row("ADS-B reports", str(len(result.adsb)))
     for name, path in paths.items():
         table.add_row(name, str(path))
+    console.print(table)
+    if result.recorded is not None:
+        _print_cleaning(result.recorded.cleaning)
+
+
+def _print_cleaning(cleaning) -> None:
+    """The counts of :class:`skytrack.sim.cleaning.CleaningReport`, one row each."""
+    table = Table(title="cleaning of the recording (whole file)", show_header=False)
+    table.add_row("rows read", f"{cleaning.rows_read} ({cleaning.aircraft_read} aircraft)")
+    table.add_row("rows out of time order (sorted)", str(cleaning.reordered))
+    for step, count in cleaning.removed.items():
+        table.add_row(f"removed: {step.replace('_', ' ')}", str(count))
+    table.add_row("altitudes replaced (spikes)", str(cleaning.altitudes_replaced))
+    table.add_row("gaps cut", str(cleaning.gaps))
+    table.add_row("rows kept", f"{cleaning.rows_kept} in {cleaning.segments} segments of {cleaning.aircraft_kept} aircraft")
     console.print(table)
 
 
@@ -157,8 +187,11 @@ def track(
     manoeuvre_scale: Annotated[Optional[float], typer.Option(help="Process-noise factor while a track manoeuvres (1 = off; default 3000 for cv, off for singer).")] = None,
     p_gate: Annotated[float, typer.Option(help="Gate probability P_G (chi-square gate).")] = defaults.P_GATE,
     gate_threshold: Annotated[Optional[float], typer.Option(help="Gate threshold g (overrides --p-gate).")] = None,
-    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4.")] = f"{defaults.CONFIRM_M}/{defaults.CONFIRM_N}",
-    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses.")] = defaults.DELETE_MISSES,
+    confirm: Annotated[str, typer.Option(help="M/N confirmation rule, e.g. 3/4 (with --track-logic m-of-n).")] = f"{defaults.CONFIRM_M}/{defaults.CONFIRM_N}",
+    delete_misses: Annotated[int, typer.Option(help="Delete a confirmed track after this many consecutive misses (with the score: when its score falls by as much as that many misses).")] = defaults.DELETE_MISSES,
+    track_logic: Annotated[str, typer.Option(help="Confirm and delete by the track score (score) or by hit counts (m-of-n).")] = defaults.TRACK_LOGIC,
+    false_tracks_per_hour: Annotated[float, typer.Option(help="False-track rate per radar that the track score's confirmation threshold is set for.")] = defaults.FALSE_TRACKS_PER_HOUR,
+    report_max_misses: Annotated[int, typer.Option(help="Report a confirmed track only while it has fewer consecutive misses than this (0: until deleted).")] = defaults.REPORT_MAX_MISSES,
     init: Annotated[str, typer.Option(help="Track initiation: one-point or two-point.")] = defaults.INIT,
     tracking_dim: Annotated[Optional[int], typer.Option(help="2 (horizontal) or 3; default from the radars.")] = None,
     default_altitude: Annotated[Optional[float], typer.Option(help="Fixed altitude (m) for 2-D plots without Mode C (default: bounded between the radar horizon and 30 deg elevation).")] = None,
@@ -180,7 +213,8 @@ def track(
         "manoeuvre_q_scale": manoeuvre_scale, "p_gate": p_gate, "gate_threshold": gate_threshold,
         "confirm_m": confirm_m, "confirm_n": confirm_n, "delete_misses": delete_misses, "init": init,
         "tracking_dim": tracking_dim, "default_altitude_m": default_altitude, "output_interval_s": output_interval,
-        "full_covariance": full_covariance,
+        "full_covariance": full_covariance, "track_logic": track_logic, "false_tracks_per_hour": false_tracks_per_hour,
+        "report_max_misses": report_max_misses,
     }
     if config_file is None:
         config = TrackerConfig(**options)
