@@ -149,6 +149,21 @@ def test_lenient_mode_counts_skipped_rows(tmp_path):
     assert "skipped" in result.output and "1" in result.output
 
 
+def test_simulate_the_terminal_scenario(tmp_path):
+    """The tracker's tuning scenario runs from the command line: landing aircraft end before the
+    run does, and some false plots carry SSR codes and heights."""
+    result = invoke("simulate", "terminal", "-o", tmp_path)
+    assert result.exit_code == 0, result.output
+    plots = pd.read_parquet(tmp_path / "plots.parquet")
+    truth = pd.read_parquet(tmp_path / "truth.parquet")
+    assert truth["target_id"].nunique() == 60 and plots["time"].max() <= 1200.0
+    ended = truth.groupby("target_id")["time"].max()
+    assert (ended < 1200.0).sum() >= 5
+    false = plots[plots["truth_id"] == ""]
+    assert 0.02 < false["mode3a"].notna().mean() < 0.08 and 0.02 < false["mode_c_ft"].notna().mean() < 0.08
+    assert false["mode_s"].isna().all()
+
+
 def test_unknown_scenario_and_bad_options(tmp_path):
     result = invoke("simulate", "no_such_scenario", "-o", tmp_path)
     assert result.exit_code == 2 and "no_such_scenario" in result.output

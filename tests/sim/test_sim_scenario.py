@@ -11,6 +11,7 @@ from sim_builders import radar, scenario, target
 from skytrack.geo import Sensor, SensorSet
 from skytrack.sim import ScenarioError, bundled_scenarios, load_scenario, scale_traffic, simulate
 from skytrack.sim.scenario import TurnLeg
+from skytrack.sim.spec import LandLeg
 from skytrack.sim.traffic import allowed_mode3a_codes
 
 
@@ -72,7 +73,7 @@ def test_unknown_keys_are_rejected_with_the_known_ones():
         ({"targets": [{"id": "a", "range_m": 1000, "azimuth_deg": 10, "sensor": "nope", "alt_m": 1, "speed_mps": 1, "heading_deg": 0}]}, "targets[0].sensor: unknown sensor 'nope'; sensors: radar1"),
         ({"targets": [target(speed_mps="fast")]}, "targets[0].speed_mps: must be a number, got 'fast'"),
         ({"targets": [target(start_time_s=120)]}, "targets[0].start_time_s: must be < 120, got 120"),
-        ({"targets": [target(legs=[{"type": "loop"}])]}, "targets[0].legs[0].type: must be one of straight, turn, climb, accelerate, singer, waypoints, got 'loop'"),
+        ({"targets": [target(legs=[{"type": "loop"}])]}, "targets[0].legs[0].type: must be one of straight, turn, climb, accelerate, singer, waypoints, land, got 'loop'"),
         ({"targets": [target(legs=[{"type": "turn", "g": 2, "direction": "left"}])]}, "targets[0].legs[0]: a turn needs exactly one of duration_s or turn_deg"),
         ({"targets": [target(legs=[{"type": "turn", "g": 2, "direction": "up", "turn_deg": 9}])]}, "targets[0].legs[0].direction: must be one of left, right, got 'up'"),
         ({"targets": [target(legs=[{"type": "waypoints", "max_g": 2, "points": [{"x": 1}]}])]}, "targets[0].legs[0].points[0].y: required key is missing"),
@@ -194,7 +195,7 @@ def test_scale_traffic_keeps_everything_else():
 
 
 def test_bundled_demo_scenario():
-    assert {"demo", "two_radars", "radar3d", "crossing"} <= set(bundled_scenarios())
+    assert {"demo", "two_radars", "radar3d", "crossing", "terminal"} <= set(bundled_scenarios())
     demo = load_scenario("demo")
     targets = demo.all_targets()
     assert len(targets) >= 60
@@ -207,7 +208,7 @@ def test_bundled_demo_scenario():
     assert [t.id for t in targets if not t.transponder] == ["DEMO3"]
 
 
-@pytest.mark.parametrize("name", ["two_radars", "radar3d", "crossing"])
+@pytest.mark.parametrize("name", ["two_radars", "radar3d", "crossing", "terminal"])
 def test_bundled_scenarios_simulate(name):
     s = load_scenario(name)
     result = simulate(s)
@@ -239,3 +240,38 @@ def test_crossing_scenario_geometry():
     assert np.linalg.norm(horizontal("CROSS-C", 150.0) - horizontal("CROSS-D", 150.0)) < 0.01
     for t in (0.0, 100.0, 199.0):
         assert abs(np.linalg.norm(horizontal("PAIR-1", t) - horizontal("PAIR-2", t)) - 600.0) < 0.01
+
+
+def test_terminal_scenario_has_terminal_traffic_and_a_real_radar_s_false_plots():
+    """The tracker's tuning scenario: the demo's radar, landings, departures, clutter patches
+    and SSR replies on false plots (counts within 4 sigma of their means)."""
+    s = load_scenario("terminal")
+    (sensor,) = s.sensors.sensors
+    params = s.radar_params[sensor.name]
+    assert sensor.type == "radar-2d" and s.duration_s == 1200.0
+    assert (sensor.scan_period_s, sensor.sigma_range_m, sensor.sigma_azimuth_deg, sensor.p_detection) == (4.0, 40.0, 0.07, 0.9)
+    assert sensor.clutter_per_scan == 30.0 and params.clutter_distribution == "range"
+    near, far = sorted(params.clutter_patches, key=lambda patch: patch.range_m)
+    assert near.range_m == (5000.0, 20000.0) and far.range_m == (60000.0, 80000.0)
+    assert params.clutter_p_mode3a == 0.05 and params.clutter_p_mode_c == 0.05 and params.p_mode_c == 0.9
+    traffic = s.traffic
+    assert (traffic.maneuver_fraction, traffic.landing_fraction, traffic.departure_fraction) == (0.3, 0.15, 0.15)
+    targets = s.all_targets()
+    assert len(targets) == 60 and 2 <= sum(not t.transponder for t in targets) <= 8
+    landing = {t.id for t in targets if t.legs and isinstance(t.legs[-1], LandLeg)}
+    departing = {t.id for t in targets if t.alt_m < traffic.alt_m[0]}
+    assert 4 <= len(landing) <= 16 and 4 <= len(departing) <= 16
+
+    result = simulate(s)
+    false = result.plots[result.plots.truth_id == ""]
+    scans = 1200.0 / 4.0
+    expected = (30.0 + near.per_scan + far.per_scan) * scans
+    assert abs(len(false) - expected) < 4.0 * np.sqrt(expected)
+    for column in ("mode3a", "mode_c_ft"):
+        k = false[column].notna().sum()
+        assert abs(k - 0.05 * len(false)) < 4.0 * np.sqrt(len(false) * 0.05 * 0.95)
+    last = result.truth.sort_values("time").groupby("target_id").last()
+    first = result.truth.sort_values("time").groupby("target_id").first()
+    touched_down = last.index[(last.alt_m.abs() < 1e-6) & (last.time < 1200.0)]
+    assert set(touched_down) <= landing and len(touched_down) >= 5
+    assert (first.loc[sorted(departing), "alt_m"] <= 600.0).all()

@@ -23,6 +23,8 @@ from skytrack.sim.spec import (
     SCENARIO_TYPES,
     AccelerateLeg,
     ClimbLeg,
+    ClutterPatch,
+    LandLeg,
     Leg,
     ManeuverSpec,
     RadarSimParams,
@@ -46,7 +48,8 @@ _SENSOR_VALUE_KEYS = (
     "p_detection", "clutter_per_scan",
 )
 _SENSOR_SIM_KEYS = ("p_mode3a", "p_mode_c", "clutter_elevation_deg", "clutter_range_rate_mps",
-                    "clutter_distribution")
+                    "clutter_distribution", "clutter_patches", "clutter_p_mode3a", "clutter_p_mode_c")
+_PATCH_KEYS = ("range_m", "azimuth_deg", "per_scan")
 _TARGET_KEYS = (
     "id", "start_time_s", "x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m",
     "speed_mps", "heading_deg", "transponder", "mode3a", "icao24", "legs",
@@ -58,12 +61,14 @@ _LEG_KEYS = {
     "accelerate": ("type", "to_speed_mps", "rate_mps2"),
     "singer": ("type", "tau_s", "sigma_a_mps2", "duration_s", "speed_range_mps"),
     "waypoints": ("type", "points", "max_g"),
+    "land": ("type", "rate_mps", "field_alt_m"),
 }
 _WAYPOINT_KEYS = ("x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m")
 _TRAFFIC_KEYS = (
     "count", "id_prefix", "region", "alt_m", "speed_mps", "heading_deg", "start_time_s",
     "transponder_fraction", "mode_s_fraction", "mode3a_allocation", "mode3a_range",
-    "maneuver_fraction", "maneuvers",
+    "maneuver_fraction", "maneuvers", "landing_fraction", "landing_rate_mps", "departure_fraction",
+    "departure_alt_m",
 )
 _MANEUVER_KEYS = (
     "count", "straight_s", "weights", "turn_g", "turn_deg", "climb_rate_mps", "singer_tau_s",
@@ -153,8 +158,32 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
         clutter_elevation_deg=f.interval("clutter_elevation_deg", (min_el, min(min_el + 10.0, 90.0)), ge=-90.0, le=90.0),
         clutter_range_rate_mps=f.interval("clutter_range_rate_mps", (-300.0, 300.0)),
         clutter_distribution=f.string("clutter_distribution", "area", choices=("area", "range")),
+        clutter_patches=_parse_patches(f, sensor.max_range_m),
+        clutter_p_mode3a=f.number("clutter_p_mode3a", 0.0, ge=0.0, le=1.0),
+        clutter_p_mode_c=f.number("clutter_p_mode_c", 0.0, ge=0.0, le=1.0),
     )
     return sensor, sim
+
+
+def _parse_patches(f: Fields, max_range_m: float) -> tuple[ClutterPatch, ...]:
+    patches = []
+    for path, item in f.items("clutter_patches", None):
+        pf = Fields(item, path, f.source, _PATCH_KEYS)
+        low, high = pf.interval("range_m", ge=0.0)
+        if high <= low:
+            raise pf.error("range_m", f"must be [low, high] with low < high, got [{low:g}, {high:g}]")
+        if high > max_range_m:
+            raise pf.error("range_m", f"must lie within the instrumented range [0, {max_range_m:g}] (max_range_m), got [{low:g}, {high:g}]")
+        azimuth = pf.raw("azimuth_deg")
+        if not isinstance(azimuth, list) or len(azimuth) != 2:
+            raise pf.error("azimuth_deg", f"must be a [from, to] pair of degrees, got {describe(azimuth)}")
+        az_path = join_path(pf.path, "azimuth_deg")
+        first, last = (pf.check_number(join_path(az_path, i), value, ge=0.0, le=360.0) for i, value in enumerate(azimuth))
+        patch = ClutterPatch((low, high), (first, last), pf.number("per_scan", ge=0.0))
+        if patch.width_deg == 0.0:
+            raise pf.error("azimuth_deg", f"is an empty sector [{first:g}, {last:g}]; give [0, 360] for all azimuths")
+        patches.append(patch)
+    return tuple(patches)
 
 
 def _sensor_position(f: Fields, origin: Origin) -> tuple[float, float, float, float, float, float]:
@@ -225,7 +254,7 @@ def _parse_target(f: Fields, ctx: _Context) -> TargetSpec:
     transponder = f.boolean("transponder", mode3a is not None or icao24 is not None)
     if not transponder and (mode3a is not None or icao24 is not None):
         raise f.error("transponder", "is false but mode3a/icao24 is given")
-    legs = tuple(_parse_leg(path, item, f.source, ctx, alt) for path, item in f.items("legs", None))
+    legs = _parse_legs(f, ctx, alt)
     return TargetSpec(
         id=str(raw_id),
         x=x,
@@ -252,6 +281,39 @@ def _mode3a(f: Fields, key: str) -> str | None:
     return value
 
 
+def _parse_legs(f: Fields, ctx: _Context, alt: float) -> tuple[Leg, ...]:
+    """The legs of a target; a land leg must come last and start above its field."""
+    items = f.items("legs", None)
+    legs: list[Leg] = []
+    height = alt
+    for index, (path, item) in enumerate(items):
+        leg = _parse_leg(path, item, f.source, ctx, alt)
+        if isinstance(leg, LandLeg):
+            if index != len(items) - 1:
+                raise f.error_at(path, "a land leg ends the flight (the truth ends at touchdown), so it must be the last leg")
+            if leg.field_alt_m >= height:
+                raise f.error_at(
+                    join_path(path, "field_alt_m"),
+                    f"must be below the height at the start of the leg ({height:g} m), got {leg.field_alt_m:g}",
+                )
+        height = _height_after(leg, height)
+        legs.append(leg)
+    return tuple(legs)
+
+
+def _height_after(leg: Leg, height: float) -> float:
+    """Height at the end of a leg that starts at ``height`` (as the trajectories fly it)."""
+    if isinstance(leg, ClimbLeg):
+        return leg.to_alt_m if leg.to_alt_m is not None else height + leg.rate_mps * leg.duration_s
+    if isinstance(leg, WaypointsLeg):
+        for point in leg.points:
+            height = height if point.alt_m is None else point.alt_m
+        return height
+    if isinstance(leg, LandLeg):
+        return leg.field_alt_m
+    return height
+
+
 def _parse_leg(path: str, item: Any, source: str, ctx: _Context, alt: float) -> Leg:
     if not isinstance(item, dict) or "type" not in item:
         raise ScenarioError(f"{source}: {path}: must be a mapping with a 'type' key ({', '.join(LEG_TYPES)}), got {describe(item)}")
@@ -276,6 +338,8 @@ def _parse_leg(path: str, item: Any, source: str, ctx: _Context, alt: float) -> 
         return ClimbLeg(rate, duration, to_alt)
     if kind == "accelerate":
         return AccelerateLeg(f.number("to_speed_mps", gt=0.0), f.number("rate_mps2", gt=0.0))
+    if kind == "land":
+        return LandLeg(f.number("rate_mps", gt=0.0), f.number("field_alt_m", 0.0))
     if kind == "singer":
         return SingerLeg(
             f.number("tau_s", gt=0.0),
@@ -307,10 +371,23 @@ def _parse_traffic(f: Fields, ctx: _Context) -> TrafficSpec:
     if int(last, 8) < int(first, 8):
         raise f.error("mode3a_range", f"first must be <= last, got [{first!r}, {last!r}]")
     duration = ctx.duration_s
+    alt = f.interval("alt_m")
+    landing = f.number("landing_fraction", 0.0, ge=0.0, le=1.0)
+    departure = f.number("departure_fraction", 0.0, ge=0.0, le=1.0)
+    if landing + departure > 1.0:
+        raise f.error("departure_fraction", f"landing_fraction + departure_fraction must be <= 1 (an aircraft lands, departs or neither), got {landing:g} + {departure:g}")
+    if landing > 0.0 and alt[0] <= 0.0:
+        raise f.error("alt_m", f"must be > 0 when landing_fraction > 0 (landing aircraft touch down at 0 m), got [{alt[0]:g}, {alt[1]:g}]")
+    departure_alt = f.interval("departure_alt_m", (200.0, 600.0), ge=0.0)
+    if departure > 0.0 and departure_alt[1] > alt[0]:
+        raise f.error(
+            "departure_alt_m",
+            f"must lie below alt_m (departing aircraft climb from it to a height in alt_m), got [{departure_alt[0]:g}, {departure_alt[1]:g}] with alt_m [{alt[0]:g}, {alt[1]:g}]",
+        )
     return TrafficSpec(
         count=f.integer("count", ge=0),
         region=region,
-        alt_m=f.interval("alt_m"),
+        alt_m=alt,
         speed_mps=f.interval("speed_mps", gt=0.0),
         heading_deg=f.interval("heading_deg", (0.0, 360.0)),
         start_time_s=f.interval("start_time_s", (0.0, 0.0), ge=0.0, le=duration),
@@ -321,6 +398,10 @@ def _parse_traffic(f: Fields, ctx: _Context) -> TrafficSpec:
         mode3a_range=(first, last),
         maneuver_fraction=f.number("maneuver_fraction", 0.0, ge=0.0, le=1.0),
         maneuvers=_parse_maneuvers(f.sub("maneuvers", _MANEUVER_KEYS, None)),
+        landing_fraction=landing,
+        landing_rate_mps=f.interval("landing_rate_mps", (5.0, 10.0), gt=0.0),
+        departure_fraction=departure,
+        departure_alt_m=departure_alt,
     )
 
 

@@ -22,9 +22,17 @@ set), plus independent Gaussian noise.  Coverage: range <= ``max_range_m``, elev
 ``min_elevation_deg`` and ground distance within the 4/3-Earth radar horizon.  Detection is
 Bernoulli(``p_detection``) per crossing in coverage.  SSR: transponder targets answer with
 Mode 3/A (probability ``p_mode3a``) and Mode C (``p_mode_c``; height in feet rounded to
-100 ft), and a target with an address always gives its Mode S address.  Clutter:
-Poisson(``clutter_per_scan``) false plots per revolution, uniform in area over the disc of
-radius ``max_range_m``, timed by the beam, without SSR data and with ``truth_id`` "".
+100 ft), and a target with an address always gives its Mode S address.
+
+Clutter (false plots, ``truth_id`` ""): Poisson(``clutter_per_scan``) per revolution over
+the disc of radius ``max_range_m``, uniform in area or uniform in range and azimuth
+(``clutter_distribution``), plus Poisson(``per_scan``) per revolution in each clutter
+patch, uniform in range and azimuth inside it.  Each false plot is timed by the beam
+crossing of its azimuth.  A false plot carries a random Mode 3/A code (uniform over
+0000-7777) with probability ``clutter_p_mode3a`` and a random Mode C height (uniform over
+0-45 000 ft, rounded to 100 ft as the targets' are) with probability ``clutter_p_mode_c``;
+never a Mode S address.  Random numbers for patches and false-plot SSR are drawn only
+when a sensor has them, so the false plots of a sensor without them do not change.
 """
 
 from __future__ import annotations
@@ -42,6 +50,10 @@ from skytrack.sim.trajectories import TrajectorySet
 
 FEET_PER_METRE = 1.0 / 0.3048
 MODE_C_STEP_FT = 100.0
+#: highest random Mode C height of a false plot (ft)
+CLUTTER_MODE_C_MAX_FT = 45000.0
+#: every Mode 3/A code as text, indexed by its value: false plots draw codes by index
+MODE3A_CODES = np.array([f"{code:04o}" for code in range(8**4)], dtype=object)
 #: beam-crossing time tolerance (s) and iteration cap of the fixed-point refinement
 CROSSING_TOLERANCE_S = 1e-7
 CROSSING_MAX_ITERATIONS = 30
@@ -202,35 +214,72 @@ def _secondary(params: RadarSimParams, traj: TrajectorySet, target: np.ndarray, 
 
 
 def clutter_plots(sensor: Sensor, params: RadarSimParams, duration_s: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """False plots: Poisson count per revolution, uniform in area over the coverage disc, or
-    uniform in range and azimuth (``params.clutter_distribution == "range"``: dense near the
-    radar, the way a real radar's false plots are)."""
+    """False plots of one radar over [0, duration_s]: the coverage-wide clutter, then the
+    clutter patches, each plot at the time the beam crosses its azimuth (see the module docstring)."""
     period, phase = sensor.scan_period_s, sensor.scan_phase_s
     first, last = math.floor(-phase / period), math.floor((duration_s - phase) / period)
-    per_scan = rng.poisson(sensor.clutter_per_scan, last - first + 1)
-    revolution = np.repeat(np.arange(first, last + 1), per_scan)
+    revolutions = np.arange(first, last + 1)
+    per_scan = rng.poisson(sensor.clutter_per_scan, revolutions.size)
+    revolution = np.repeat(revolutions, per_scan)
+    # columns: range fraction, azimuth (turns), elevation fraction, range-rate fraction
+    draws = rng.random((revolution.size, 4))
+    fraction = draws[:, 0] if params.clutter_distribution == "range" else np.sqrt(draws[:, 0])
+    range_m = sensor.max_range_m * fraction
+    turns, spread = draws[:, 1], draws[:, 2:]
+    if params.clutter_patches:
+        patch_revolution, patch_range, patch_turns, patch_spread = _patch_clutter(params.clutter_patches, revolutions, rng)
+        revolution = np.concatenate([revolution, patch_revolution])
+        range_m = np.concatenate([range_m, patch_range])
+        turns = np.concatenate([turns, patch_turns])
+        spread = np.concatenate([spread, patch_spread])
     n = revolution.size
-    draws = rng.random((n, 4))
-    time = phase + period * (revolution + draws[:, 1])
+    time = phase + period * (revolution + turns)
     columns = {
         "time": time,
-        "range_m": sensor.max_range_m * (draws[:, 0] if params.clutter_distribution == "range" else np.sqrt(draws[:, 0])),
-        "azimuth_deg": 360.0 * draws[:, 1],
+        "range_m": range_m,
+        "azimuth_deg": 360.0 * turns,
         "scan": (revolution - first).astype(np.int64),
         "elevation_deg": np.full(n, np.nan),
         "range_rate_mps": np.full(n, np.nan),
     }
     if sensor.is_3d:
         low, high = params.clutter_elevation_deg
-        columns["elevation_deg"] = low + (high - low) * draws[:, 2]
+        columns["elevation_deg"] = low + (high - low) * spread[:, 0]
     if sensor.sigma_range_rate_mps is not None:
         low, high = params.clutter_range_rate_mps
-        columns["range_rate_mps"] = low + (high - low) * draws[:, 3]
+        columns["range_rate_mps"] = low + (high - low) * spread[:, 1]
     keep = (time >= 0.0) & (time <= duration_s)
     columns = {k: v[keep] for k, v in columns.items()}
     m = int(keep.sum())
-    columns.update(
-        {"mode3a": np.full(m, None, dtype=object), "mode_c_ft": np.full(m, np.nan),
-         "mode_s": np.full(m, None, dtype=object), "truth_id": np.full(m, "", dtype=object)}
-    )
+    columns.update(_clutter_secondary(params, m, rng))
+    columns.update({"mode_s": np.full(m, None, dtype=object), "truth_id": np.full(m, "", dtype=object)})
     return columns
+
+
+def _patch_clutter(patches, revolutions: np.ndarray, rng: np.random.Generator):
+    """Revolution, range, azimuth (turns) and [elevation, range-rate] fractions of the patches' false plots."""
+    counts = rng.poisson([patch.per_scan for patch in patches], (revolutions.size, len(patches))).ravel()
+    revolution = np.repeat(np.repeat(revolutions, len(patches)), counts)
+    which = np.repeat(np.tile(np.arange(len(patches)), revolutions.size), counts)
+    near = np.array([patch.range_m[0] for patch in patches])[which]
+    far = np.array([patch.range_m[1] for patch in patches])[which]
+    start = np.array([patch.azimuth_deg[0] / 360.0 for patch in patches])[which]
+    width = np.array([patch.width_deg / 360.0 for patch in patches])[which]
+    draws = rng.random((which.size, 4))
+    # a sector through north ([350, 20]) runs past 1 turn and wraps to the start of the revolution
+    turns = np.remainder(start + width * draws[:, 1], 1.0)
+    return revolution, near + (far - near) * draws[:, 0], turns, draws[:, 2:]
+
+
+def _clutter_secondary(params: RadarSimParams, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Random Mode 3/A codes and Mode C heights on false plots (garbled or fruit replies)."""
+    mode3a = np.full(n, None, dtype=object)
+    mode_c = np.full(n, np.nan)
+    if params.clutter_p_mode3a > 0.0:
+        with_code = rng.random(n) < params.clutter_p_mode3a
+        mode3a = np.where(with_code, MODE3A_CODES[rng.integers(0, MODE3A_CODES.size, n)], None)
+    if params.clutter_p_mode_c > 0.0:
+        with_c = rng.random(n) < params.clutter_p_mode_c
+        feet = rng.uniform(0.0, CLUTTER_MODE_C_MAX_FT, n)
+        mode_c = np.where(with_c, MODE_C_STEP_FT * np.round(feet / MODE_C_STEP_FT), np.nan)
+    return {"mode3a": mode3a, "mode_c_ft": mode_c}

@@ -1,6 +1,7 @@
 """Scenario dataclasses: the validated sections of a scenario file (legs, targets, radar
-simulation parameters, random traffic), shared by the loader (:mod:`skytrack.sim.scenario`),
-the traffic generator (:mod:`skytrack.sim.traffic`), the trajectories and the radar model.
+simulation parameters with their clutter patches, random traffic), shared by the loader
+(:mod:`skytrack.sim.scenario`), the traffic generator (:mod:`skytrack.sim.traffic`), the
+trajectories and the radar model.
 
 The keys and their meaning are documented in :mod:`skytrack.sim.scenario`; the whole
 scenario (:class:`~skytrack.sim.scenario.Scenario`) lives there too, because it draws its
@@ -10,11 +11,10 @@ random traffic with :mod:`skytrack.sim.traffic`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Union
 
 GRAVITY_MPS2 = 9.80665
 SCENARIO_TYPES = ("radar-2d", "radar-3d")
-LEG_TYPES = ("straight", "turn", "climb", "accelerate", "singer", "waypoints")
+LEG_TYPES = ("straight", "turn", "climb", "accelerate", "singer", "waypoints", "land")
 RESERVED_MODE3A = ("7000", "7500", "7600", "7700")
 
 
@@ -65,7 +65,15 @@ class WaypointsLeg:
     max_g: float
 
 
-Leg = Union[StraightLeg, TurnLeg, ClimbLeg, AccelerateLeg, SingerLeg, WaypointsLeg]
+@dataclass(frozen=True)
+class LandLeg:
+    """Descent at ``rate_mps`` (> 0) along the current heading; the flight ends at touchdown."""
+
+    rate_mps: float
+    field_alt_m: float = 0.0
+
+
+Leg = StraightLeg | TurnLeg | ClimbLeg | AccelerateLeg | SingerLeg | WaypointsLeg | LandLeg
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,22 @@ class TargetSpec:
 
 
 @dataclass(frozen=True)
+class ClutterPatch:
+    """A region of extra false plots: Poisson(``per_scan``) per revolution, uniform in range and
+    azimuth inside it.  ``azimuth_deg`` runs clockwise from low to high and wraps through north
+    when low > high ([350, 20] is 30 degrees wide)."""
+
+    range_m: tuple[float, float]
+    azimuth_deg: tuple[float, float]
+    per_scan: float
+
+    @property
+    def width_deg(self) -> float:
+        low, high = self.azimuth_deg
+        return high - low if high >= low else high - low + 360.0
+
+
+@dataclass(frozen=True)
 class RadarSimParams:
     """Simulation-only parameters of one radar (not part of sensors.json)."""
 
@@ -96,6 +120,11 @@ class RadarSimParams:
     clutter_distribution: str = "area"
     """"area": false plots uniform over the coverage disc; "range": uniform in range and azimuth,
     so dense near the radar, as a real radar's are"""
+    clutter_patches: tuple[ClutterPatch, ...] = ()
+    clutter_p_mode3a: float = 0.0
+    """probability that a false plot carries a random Mode 3/A code"""
+    clutter_p_mode_c: float = 0.0
+    """probability that a false plot carries a random Mode C height"""
 
 
 @dataclass(frozen=True)
@@ -137,3 +166,7 @@ class TrafficSpec:
     mode3a_range: tuple[str, str] = ("0001", "7777")
     maneuver_fraction: float = 0.0
     maneuvers: ManeuverSpec = field(default_factory=ManeuverSpec)
+    landing_fraction: float = 0.0
+    landing_rate_mps: tuple[float, float] = (5.0, 10.0)
+    departure_fraction: float = 0.0
+    departure_alt_m: tuple[float, float] = (200.0, 600.0)

@@ -5,6 +5,11 @@ so the same scenario file always holds the same aircraft, whatever Generator lat
 the sensors.  Positions are uniform in area over the region (for an annulus, in the
 sensor's own frame); Mode 3/A codes come from an octal range without the special codes
 7000/7500/7600/7700, Mode S addresses are distinct random 24-bit numbers.
+
+Landing and departing aircraft: each aircraft lands (a ``land`` leg after its other
+manoeuvres), departs (starts low and first climbs to its height drawn from ``alt_m``) or
+neither.  These draws come from their own stream (``"airfield"``), so giving a scenario
+landing or departing aircraft leaves every other aircraft as it was.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from skytrack.sim.spec import (
     RESERVED_MODE3A,
     AccelerateLeg,
     ClimbLeg,
+    LandLeg,
     Leg,
     ManeuverSpec,
     SingerLeg,
@@ -26,11 +32,12 @@ from skytrack.sim.spec import (
     TurnLeg,
 )
 
-_STREAMS = ("traffic", "motion", "sensors")
+# a new purpose goes at the end: SeedSequence children are numbered, so the others keep their streams
+_STREAMS = ("traffic", "motion", "sensors", "airfield")
 
 
 def seed_stream(seed: int, purpose: str) -> np.random.Generator:
-    """Independent generator for one purpose (``traffic``, ``motion``, ``sensors``) of a scenario seed."""
+    """Independent generator for one purpose (``traffic``, ``motion``, ``sensors``, ``airfield``) of a scenario seed."""
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(len(_STREAMS))[_STREAMS.index(purpose)])
 
 
@@ -46,8 +53,15 @@ def generate_traffic(
         return []
     rng = seed_stream(seed, "traffic")
     n = spec.count
-    alt = rng.uniform(*spec.alt_m, n)
-    x, y = _positions(spec, sensors, origin, rng, alt)
+    alt = rng.uniform(*spec.alt_m, n)  # the cruise height; departing aircraft start below it
+    airfield = seed_stream(seed, "airfield")
+    role = airfield.random(n)
+    landing = role < spec.landing_fraction
+    departing = ~landing & (role < spec.landing_fraction + spec.departure_fraction)
+    landing_rate = airfield.uniform(*spec.landing_rate_mps, n)
+    start_alt = np.where(departing, airfield.uniform(*spec.departure_alt_m, n), alt)
+    climb_rate = airfield.uniform(*spec.maneuvers.climb_rate_mps, n)
+    x, y = _positions(spec, sensors, origin, rng, start_alt)
     speed = rng.uniform(*spec.speed_mps, n)
     heading = rng.uniform(*spec.heading_deg, n)
     start = rng.uniform(*spec.start_time_s, n)
@@ -62,13 +76,17 @@ def generate_traffic(
     width = max(4, len(str(n - 1)))
     targets = []
     for i in range(n):
-        legs = _random_legs(spec, spec.maneuvers, rng, float(alt[i])) if maneuvering[i] else ()
+        legs: tuple[Leg, ...] = (ClimbLeg(float(climb_rate[i]), to_alt_m=float(alt[i])),) if departing[i] else ()
+        if maneuvering[i]:
+            legs += _random_legs(spec, spec.maneuvers, rng, float(alt[i]))
+        if landing[i]:
+            legs += (LandLeg(float(landing_rate[i])),)
         targets.append(
             TargetSpec(
                 id=f"{spec.id_prefix}{i:0{width}d}",
                 x=float(x[i]),
                 y=float(y[i]),
-                alt_m=float(alt[i]),
+                alt_m=float(start_alt[i]),
                 speed_mps=float(speed[i]),
                 heading_deg=float(heading[i]),
                 start_time_s=float(start[i]),

@@ -14,6 +14,9 @@ The height above the ellipsoid is linear within a piece (``h0 + hdot tau``).  EN
 latitude/longitude and ``vz`` follow from (x, y, h) with :mod:`skytrack.sim.earth`,
 so ``z`` includes the Earth's curvature.
 
+A ``land`` leg is a straight descent at its rate to the field height; the target's
+``end_time`` is the touchdown (no truth and no plots after it).
+
 Singer legs (spec 000, section 3.3, X1-X2): acceleration on each horizontal axis is
 the stationary first-order Markov process of the Singer model, sampled exactly every
 ``SINGER_STEP_S`` with :class:`skytrack.models.SingerAxisModel` (``exact``
@@ -38,6 +41,7 @@ from skytrack.sim.spec import (
     GRAVITY_MPS2,
     AccelerateLeg,
     ClimbLeg,
+    LandLeg,
     SingerLeg,
     StraightLeg,
     TargetSpec,
@@ -90,7 +94,7 @@ class TrajectorySet:
 
     ids: np.ndarray  # [N] object (str)
     start_time: np.ndarray  # [N]
-    end_time: np.ndarray  # [N] last instant simulated (truncated when the target leaves coverage)
+    end_time: np.ndarray  # [N] last instant simulated (touchdown of a land leg; truncated when the target leaves coverage)
     legs_end_time: np.ndarray  # [N] end of the last scripted leg (capped at the duration)
     transponder: np.ndarray  # [N] bool
     mode3a: np.ndarray  # [N] object, None when absent
@@ -160,6 +164,7 @@ def build_trajectories(targets: list[TargetSpec], duration_s: float, origin: Ori
     n = len(targets)
     start = np.array([t.start_time_s for t in targets], dtype=float)
     legs_end = np.empty(n)
+    end = np.full(n, float(duration_s))
     for j, target in enumerate(targets):
         state = _FlightState(
             target.start_time_s, target.x, target.y, target.alt_m, target.speed_mps, math.radians(target.heading_deg)
@@ -168,7 +173,11 @@ def build_trajectories(targets: list[TargetSpec], duration_s: float, origin: Ori
             if state.t >= duration_s:
                 break
             state = _fly_leg(pieces, j, state, leg, rng)
+            if isinstance(leg, LandLeg):  # the last leg (parser): the flight ends at touchdown
+                end[j] = min(state.t, duration_s)
         legs_end[j] = min(state.t, duration_s)
+        # level flight to the end of the run; after a touchdown it only serves evaluations just
+        # past end_time (beam-crossing refinement), whose plots are dropped
         _line(pieces, j, state, max(duration_s - state.t, 0.0))
     if n:
         arrays = {name: np.concatenate(getattr(pieces, name)) for name in ("target", "t0", "kind", "coef", "h0", "hdot")}
@@ -180,7 +189,7 @@ def build_trajectories(targets: list[TargetSpec], duration_s: float, origin: Ori
     return TrajectorySet(
         ids=np.array([t.id for t in targets], dtype=object),
         start_time=start,
-        end_time=np.full(n, float(duration_s)),
+        end_time=end,
         legs_end_time=legs_end,
         transponder=np.array([t.transponder for t in targets], dtype=bool),
         mode3a=np.array([t.mode3a for t in targets], dtype=object),
@@ -229,6 +238,11 @@ def _fly_leg(p: _PieceLists, j: int, s: _FlightState, leg, rng: np.random.Genera
         for point in leg.points:
             s = _fly_to(p, j, s, point.x, point.y, point.alt_m, leg.max_g)
         return s
+    if isinstance(leg, LandLeg):
+        drop = s.h - leg.field_alt_m
+        if drop <= 0.0:  # already at (or below) the field: touchdown now
+            return s
+        return _line(p, j, s, drop / leg.rate_mps, hdot=-leg.rate_mps, h_end=leg.field_alt_m)
     raise TypeError(f"unknown leg {leg!r}")  # pragma: no cover - the loader only builds the types above
 
 

@@ -2,9 +2,10 @@
 
 Rows follow FORMATS.md "truth": time, target_id, segment, x, y, z, vx, vy, vz, lat, lon,
 alt_m, visible.  ``visible`` is true when at least one sensor covers the target
-(:func:`skytrack.sim.radar.in_coverage`).  After its last leg a target is ended at the
-first sample where it is outside every sensor's maximum range and opening from every
-sensor: flying straight it cannot come back, so it has left the coverage for good.
+(:func:`skytrack.sim.radar.in_coverage`).  A target that lands ends at touchdown (its
+last row).  After its last leg a target is ended at the first sample where it is outside
+every sensor's maximum range and opening from every sensor: flying straight it cannot
+come back, so it has left the coverage for good.
 Sampling is vectorised over all (target, time) rows, in chunks to bound memory.
 """
 
