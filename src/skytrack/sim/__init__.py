@@ -6,12 +6,17 @@
 * :func:`simulate` runs it: ``result.plots`` / ``result.truth`` follow FORMATS.md,
   ``result.sensors`` is the :class:`~skytrack.geo.SensorSet` written as sensors.json.
 * :func:`scale_traffic` changes the number of random aircraft (throughput benchmark).
+* Recorded aircraft as truth: a scenario's ``recorded`` section, with the state vectors of
+  :func:`skytrack.io.read_state_vectors` passed as ``simulate(..., recorded=states)``.
 
 Modules: ``scenario`` (:class:`Scenario`, loading), ``spec`` (the scenario section
 dataclasses), ``parse`` (section parsers and validation), ``traffic`` (random aircraft), ``trajectories``
 (exact arcs, Singer legs, waypoints), ``truth`` (sampling, coverage exit), ``radar``
 (beam crossings, detection, noise, SSR, clutter), ``earth`` (heights above the ellipsoid
-in the ENU frame, radar horizon), ``simulate`` (the pipeline).
+in the ENU frame, radar horizon), ``simulate`` (the pipeline), ``cleaning`` (recorded
+state vectors cleaned and cut into segments), ``recorded`` (the ``recorded`` section, the
+bundled recordings, the window, ADS-B reports), ``recorded_motion`` (segments as cubic
+Hermite trajectories).
 """
 
 from skytrack.sim._validate import ScenarioError

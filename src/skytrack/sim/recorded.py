@@ -234,6 +234,8 @@ def prepare_recorded(
     noise (only with ``adsb_sigma_m``).  Raises :class:`ScenarioError` when no recorded
     aircraft is alive in the window.
     """
+    if not np.isfinite(states["time"].to_numpy(dtype=float)).any():
+        raise ScenarioError(f"{source}: the recording has no state vector with a time")
     cleaned, report = clean_states(states, spec.cleaning)
     start = _window_start(states, spec, epoch_utc)
     cleaned["time"] = cleaned["time"] - start

@@ -34,6 +34,7 @@ Top level
 ``sensors``            list of sensors (at least one)
 ``targets``            list of scripted targets (optional)
 ``traffic``            random traffic generator (optional)
+``recorded``           recorded aircraft trajectories used as truth (optional, below)
 
 Sensors (``sensors[i]``) -- the key names of ``sensors.json`` (FORMATS.md)
 ----------------------------------------------------------------------
@@ -63,8 +64,20 @@ Simulation-only keys (not written to sensors.json):
 ``clutter_elevation_deg`` [low, high] elevation of false plots of a radar-3d
                           (default [min_elevation_deg, min_elevation_deg + 10])
 ``clutter_range_rate_mps`` [low, high] range rate of false plots (default [-300, 300])
-``clutter_distribution``  ``area`` (default: uniform over the coverage disc) or ``range`` (uniform
-                          in range and azimuth, dense near the radar as a real radar's)
+``clutter_distribution``  ``range`` (default: uniform in range and azimuth, dense near the radar
+                          as a real radar's) or ``area`` (uniform over the coverage disc)
+``clutter_patches``       list of regions of extra false plots (default none), each
+                          ``{range_m: [low, high], azimuth_deg: [from, to], per_scan: mean}``:
+                          Poisson(per_scan) false plots per revolution, uniform in range and
+                          azimuth inside the patch; the sector runs clockwise from ``from`` to
+                          ``to`` (degrees in [0, 360], in the sensor's own frame) and wraps
+                          through north when from > to ([350, 20] is 30 deg wide; [0, 360] is
+                          all around); range_m within [0, max_range_m], low < high
+``clutter_p_mode3a``      probability that a false plot carries a random Mode 3/A code, uniform
+                          over 0000-7777 (default 0)
+``clutter_p_mode_c``      probability that a false plot carries a random Mode C height, uniform
+                          over 0-45 000 ft rounded to 100 ft (default 0)
+Every false plot (coverage-wide or in a patch) comes when the beam crosses its azimuth.
 
 Coverage: slant range <= max_range_m, elevation in the sensor's frame >= min_elevation_deg,
 and ground distance within the 4/3-Earth radar horizon of sensor and target heights.
@@ -105,6 +118,13 @@ Legs (``targets[i].legs[j]``), selected by ``type``:
                 reached by a coordinated turn at max_g followed by a straight line through
                 the point, at constant speed.  A point given by range/azimuth is placed at
                 its alt_m or the target's initial altitude
+``land``        ``rate_mps`` > 0 (descent rate), ``field_alt_m`` (default 0, below the height
+                at the start of the leg): descends straight ahead at that rate and the
+                flight ends at touchdown, after (field height - start height) / rate s: no
+                truth rows and no plots afterwards.  Must be the last leg.  Aircraft that
+                take off: ``start_time_s`` with a low ``alt_m`` (any height is accepted)
+                and a ``climb`` leg.  Coverage still applies on the way down or up: a low
+                aircraft beyond the radar horizon gives no plots
 
 Traffic (``traffic``) -- random aircraft, all drawn from ``seed``
 ------------------------------------------------------------------
@@ -124,6 +144,16 @@ Traffic (``traffic``) -- random aircraft, all drawn from ``seed``
 ``mode3a_range``          [first, last] quoted octal codes, default ["0001", "7777"]; the special
                           codes 7000, 7500, 7600 and 7700 are never allocated
 ``maneuver_fraction``     fraction of aircraft flying random manoeuvres, default 0
+``landing_fraction``      fraction of aircraft that land: a ``land`` leg (field height 0) after their
+                          other manoeuvres; default 0
+``landing_rate_mps``      [low, high] descent rate of the landing aircraft, default [5, 10]
+``departure_fraction``    fraction of aircraft that depart: they start at a height uniform in
+                          ``departure_alt_m`` and first climb, at a rate uniform in the
+                          ``maneuvers`` ``climb_rate_mps``, to their height drawn from ``alt_m``;
+                          default 0.  An aircraft lands, departs or neither (the two fractions
+                          add up to at most 1); these draws leave the other aircraft unchanged
+``departure_alt_m``       [low, high] start height of departing aircraft, default [200, 600];
+                          must lie below ``alt_m``
 ``maneuvers``             how they manoeuvre:
     ``count`` [low, high] manoeuvres per aircraft (default [1, 3]), each preceded by a
     straight leg of ``straight_s`` [low, high] s (default [20, 120]); the kind is drawn with
@@ -132,6 +162,34 @@ Traffic (``traffic``) -- random aircraft, all drawn from ``seed``
     to a height uniform in ``alt_m``), ``singer_tau_s`` ([10, 60]), ``singer_sigma_a_mps2``
     ([2, 10]), ``singer_duration_s`` ([30, 120]), ``accelerate_rate_mps2`` ([0.5, 2]; to a
     speed uniform in ``speed_mps``)
+
+Recorded traffic (``recorded``) -- recorded state vectors as truth
+------------------------------------------------------------------
+Recorded aircraft (ADS-B / OpenSky state vectors, FORMATS.md "Recorded state vectors") flown
+through the same radar model, next to any scripted targets and random traffic.  The recording
+is cleaned (:mod:`skytrack.sim.cleaning`), cut into segments at gaps, and each segment is a
+target with truth id ``<icao24>-<k>``, Mode S address ``icao24`` and Mode 3/A its squawk,
+interpolated by cubic Hermite splines on the recorded velocities
+(:mod:`skytrack.sim.recorded_motion`).  The simulator itself does not read the file:
+``skytrack simulate`` and :func:`skytrack.app.simulate.run_simulation` do, or pass the
+states of :func:`skytrack.io.read_state_vectors` to ``simulate(..., recorded=...)``.
+``path``          state-vector file (Parquet, CSV or JSON lines; a relative path is taken from
+                  the scenario file's folder), or
+``sample``        name of a bundled recording (:func:`skytrack.sim.recorded.bundled_samples`)
+``start_utc``     ISO-8601 UTC instant of the recording that becomes time 0, or
+``start_s``       seconds after the recording's first time stamp (rounded down to a whole
+                  second); default: ``epoch_utc`` when given, else the first time stamp.  Time 0
+                  becomes ``epoch_utc`` (sensors.json); ``duration_s`` is the window's length
+``altitude``      ``auto`` (default: geometric when the file has it, else barometric),
+                  ``geometric`` or ``barometric``: the altitude used as the height above the
+                  ellipsoid (barometric without pressure correction)
+``adsb``          true (default): also write the recorded samples of the window as ADS-B reports
+``adsb_sigma_m``  horizontal noise (m, per axis) added to those reports; default none (as recorded)
+``cleaning``      thresholds of :class:`skytrack.sim.cleaning.CleaningOptions`: ``max_gap_s``
+                  (60), ``max_speed_mps`` (400), ``position_tolerance_m`` (100),
+                  ``max_vertical_rate_mps`` (100), ``altitude_tolerance_m`` (100),
+                  ``max_outlier_s`` (300), ``max_short_run_rows`` (3), ``min_interval_s`` (0),
+                  ``min_segment_rows`` (2), ``keep_onground`` (false)
 """
 
 from __future__ import annotations
@@ -148,6 +206,7 @@ from skytrack.geo.sensors import Origin, SensorSet
 from skytrack.sim._validate import Fields, ScenarioError, load_yaml
 from skytrack.sim.earth import sensor_relative_positions
 from skytrack.sim.parse import _TARGET_KEYS, _TRAFFIC_KEYS, _Context, _parse_sensors, _parse_target, _parse_traffic
+from skytrack.sim.recorded import RECORDED_KEYS, RecordedSpec, parse_recorded
 from skytrack.sim.spec import (
     GRAVITY_MPS2,
     LEG_TYPES,
@@ -155,6 +214,8 @@ from skytrack.sim.spec import (
     SCENARIO_TYPES,
     AccelerateLeg,
     ClimbLeg,
+    ClutterPatch,
+    LandLeg,
     Leg,
     ManeuverSpec,
     RadarSimParams,
@@ -186,6 +247,7 @@ class Scenario:
     traffic: TrafficSpec | None = None
     epoch_utc: str | None = None
     description: str = ""
+    recorded: RecordedSpec | None = None
 
     def all_targets(self) -> list[TargetSpec]:
         """Scripted targets followed by the traffic drawn from the seed (ids checked unique)."""
@@ -217,7 +279,7 @@ def scale_traffic(scenario: Scenario, count: int) -> Scenario:
 
 _TOP_KEYS = (
     "name", "description", "origin", "epoch_utc", "duration_s", "seed", "truth_sample_s",
-    "sensor_defaults", "sensors", "targets", "traffic",
+    "sensor_defaults", "sensors", "targets", "traffic", "recorded",
 )
 
 #: directory of the example scenarios shipped with the package
@@ -237,10 +299,15 @@ def bundled_scenario_path(name: str) -> Path:
     return Path(str(path))
 
 
-def load_scenario(source: str | Path | dict) -> Scenario:
-    """Read and validate a scenario from a YAML file, a bundled scenario name or a dict."""
+def load_scenario(source: str | Path | dict, overrides: dict | None = None) -> Scenario:
+    """Read and validate a scenario from a YAML file, a bundled scenario name or a dict.
+
+    ``overrides`` replaces top-level keys before validation (``{"duration_s": 600}``); a
+    mapping given for a mapping key is merged into it, a ``None`` value removing that key
+    (``{"recorded": {"start_s": 60, "start_utc": None}}``).
+    """
     if isinstance(source, dict):
-        return _parse(source, "scenario", default_name="scenario")
+        return _parse(_override(source, overrides), "scenario", default_name="scenario")
     path = Path(source)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         path = bundled_scenario_path(str(source))
@@ -248,11 +315,29 @@ def load_scenario(source: str | Path | dict) -> Scenario:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{source}: cannot read scenario file: {exc.strerror or exc}") from None
-    data = load_yaml(text, str(source))
-    return _parse(data, str(source), default_name=path.stem)
+    data = _override(load_yaml(text, str(source)), overrides)
+    return _parse(data, str(source), default_name=path.stem, base_dir=path.parent)
 
 
-def _parse(data: Any, source: str, default_name: str) -> Scenario:
+def _override(data: Any, overrides: dict | None) -> Any:
+    """``data`` with the top-level ``overrides`` applied (see :func:`load_scenario`)."""
+    if not overrides or not isinstance(data, dict):
+        return data
+    merged = dict(data)
+    for key, value in overrides.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            section = {**merged[key], **value}
+            merged[key] = {k: v for k, v in section.items() if v is not None}
+        elif isinstance(value, dict):
+            merged[key] = {k: v for k, v in value.items() if v is not None}
+        elif value is None:
+            merged.pop(key, None)
+        else:
+            merged[key] = value
+    return merged
+
+
+def _parse(data: Any, source: str, default_name: str, base_dir: Path | None = None) -> Scenario:
     top = Fields(data, "", source, _TOP_KEYS)
     origin_fields = top.sub("origin", ("lat", "lon", "alt_m"))
     origin = Origin(
@@ -281,7 +366,13 @@ def _parse(data: Any, source: str, default_name: str) -> Scenario:
         traffic=traffic,
         epoch_utc=epoch,
         description=top.string("description", ""),
+        recorded=_parse_recorded_section(top, base_dir, epoch),
     )
+
+
+def _parse_recorded_section(top: Fields, base_dir: Path | None, epoch: str | None) -> RecordedSpec | None:
+    fields = top.sub("recorded", RECORDED_KEYS, None)
+    return None if fields is None else parse_recorded(fields, base_dir, epoch)
 
 
 __all__ = [
@@ -290,10 +381,13 @@ __all__ = [
     "SCENARIO_TYPES",
     "AccelerateLeg",
     "ClimbLeg",
+    "ClutterPatch",
     "GRAVITY_MPS2",
+    "LandLeg",
     "Leg",
     "ManeuverSpec",
     "RadarSimParams",
+    "RecordedSpec",
     "RegionSpec",
     "Scenario",
     "ScenarioError",
