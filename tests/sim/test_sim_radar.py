@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pymap3d
 import pytest
-from scipy.stats import chi2
+from scipy.stats import chi2, chisquare, kstest
 
 from sim_builders import noise_free, radar, ring_of_targets, scenario, target
 from skytrack.sim import PLOT_COLUMNS, beam_azimuth_deg, load_scenario, scan_index, simulate
@@ -105,7 +105,8 @@ def test_empirical_detection_probability_within_a_binomial_band():
 
 def test_clutter_count_is_poisson_and_uniform_in_area():
     lam, scans = 30.0, 100
-    result = run(scenario([], sensors=[radar(clutter_per_scan=lam, max_range_m=200000.0)], duration_s=4.0 * scans))
+    sensor = radar(clutter_per_scan=lam, max_range_m=200000.0, clutter_distribution="area")
+    result = run(scenario([], sensors=[sensor], duration_s=4.0 * scans))
     clutter = result.plots
     assert (clutter["truth_id"] == "").all()
     assert clutter[["mode3a", "mode_c_ft", "mode_s"]].isna().all().all()
@@ -123,14 +124,20 @@ def test_clutter_count_is_poisson_and_uniform_in_area():
     assert np.abs(angle_difference_deg(clutter["azimuth_deg"], beam)).max() < 1e-9
 
 
-def test_clutter_uniform_in_range_and_azimuth_is_dense_near_the_radar():
-    """``clutter_distribution: range``: range uniform on [0, max_range] (half the plots within
-    half the range, a quarter of the area), azimuth uniform, still following the beam."""
+@pytest.mark.parametrize("distribution", [{}, {"clutter_distribution": "range"}], ids=["default", "range"])
+def test_clutter_uniform_in_range_and_azimuth_is_dense_near_the_radar(distribution):
+    """``clutter_distribution: range``, the default: range uniform on [0, max_range] (half the
+    plots within half the range, a quarter of the area), azimuth uniform, still following the
+    beam.  Uniformity: chi-square of a 20-bin range histogram and Kolmogorov-Smirnov, p > 1e-3."""
     scans = 100
-    result = run(scenario([], sensors=[radar(clutter_per_scan=30.0, max_range_m=200000.0,
-                                              clutter_distribution="range")], duration_s=4.0 * scans))
+    sensor = radar(clutter_per_scan=30.0, max_range_m=200000.0, **distribution)
+    assert load_scenario(scenario([], sensors=[sensor])).radar_params["radar1"].clutter_distribution == "range"
+    result = run(scenario([], sensors=[sensor], duration_s=4.0 * scans))
     complete = result.plots[result.plots.scan < scans]
     total = len(complete)
+    fraction = complete.range_m.to_numpy() / 200000.0
+    assert chisquare(np.histogram(fraction, bins=20, range=(0.0, 1.0))[0]).pvalue > 1e-3
+    assert kstest(fraction, "uniform").pvalue > 1e-3
     assert binomial_band((complete.range_m < 100000.0).sum(), total, 0.5)
     assert binomial_band((complete.range_m < 20000.0).sum(), total, 0.1)  # 1 % of the area, 10 % of the plots
     assert binomial_band((complete.azimuth_deg < 90.0).sum(), total, 0.25)

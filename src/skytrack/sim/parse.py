@@ -157,7 +157,7 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
         p_mode_c=f.number("p_mode_c", 1.0, ge=0.0, le=1.0),
         clutter_elevation_deg=f.interval("clutter_elevation_deg", (min_el, min(min_el + 10.0, 90.0)), ge=-90.0, le=90.0),
         clutter_range_rate_mps=f.interval("clutter_range_rate_mps", (-300.0, 300.0)),
-        clutter_distribution=f.string("clutter_distribution", "area", choices=("area", "range")),
+        clutter_distribution=f.string("clutter_distribution", "range", choices=("range", "area")),
         clutter_patches=_parse_patches(f, sensor.max_range_m),
         clutter_p_mode3a=f.number("clutter_p_mode3a", 0.0, ge=0.0, le=1.0),
         clutter_p_mode_c=f.number("clutter_p_mode_c", 0.0, ge=0.0, le=1.0),

@@ -25,8 +25,8 @@ Mode 3/A (probability ``p_mode3a``) and Mode C (``p_mode_c``; height in feet rou
 100 ft), and a target with an address always gives its Mode S address.
 
 Clutter (false plots, ``truth_id`` ""): Poisson(``clutter_per_scan``) per revolution over
-the disc of radius ``max_range_m``, uniform in area or uniform in range and azimuth
-(``clutter_distribution``), plus Poisson(``per_scan``) per revolution in each clutter
+the disc of radius ``max_range_m``, uniform in range and azimuth (``clutter_distribution``
+``range``, the default: dense near the radar) or uniform in area (``area``), plus Poisson(``per_scan``) per revolution in each clutter
 patch, uniform in range and azimuth inside it.  Each false plot is timed by the beam
 crossing of its azimuth.  A false plot carries a random Mode 3/A code (uniform over
 0000-7777) with probability ``clutter_p_mode3a`` and a random Mode C height (uniform over

@@ -117,9 +117,9 @@ class RadarSimParams:
     p_mode_c: float = 1.0
     clutter_elevation_deg: tuple[float, float] = (0.0, 10.0)
     clutter_range_rate_mps: tuple[float, float] = (-300.0, 300.0)
-    clutter_distribution: str = "area"
-    """"area": false plots uniform over the coverage disc; "range": uniform in range and azimuth,
-    so dense near the radar, as a real radar's are"""
+    clutter_distribution: str = "range"
+    """"range": false plots uniform in range and azimuth, so dense near the radar, as a real
+    radar's are; "area": uniform over the coverage disc"""
     clutter_patches: tuple[ClutterPatch, ...] = ()
     clutter_p_mode3a: float = 0.0
     """probability that a false plot carries a random Mode 3/A code"""
