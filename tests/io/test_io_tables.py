@@ -228,3 +228,27 @@ def test_parquet_text_and_names_that_are_not_utf8_are_located_errors(tmp_path):
             count_rows(path)
             list(iter_parquet_tables(path, 2))
         assert str(info.value).startswith(f"{path}: not a readable Parquet file (")
+
+
+def test_a_malformed_csv_line_that_is_not_utf8_is_a_located_error_without_noise(tmp_path, capsys):
+    """pyarrow cannot decode such a line for the invalid-row handler and aborts the read: the
+    reader names the line and the byte (strict and lenient alike), and nothing is printed."""
+    import gzip
+    import sys
+
+    from skytrack.io.errors import InputError
+    from skytrack.io.tables import iter_csv_tables
+
+    hook = sys.unraisablehook
+    text = b"sensor,time,range_m,azimuth_deg\nradar1,1,2,3\nradar1,2,3,4,\xff\xfe5\nradar1,3,4,5\n"
+    plain = tmp_path / "bad.csv"
+    plain.write_bytes(text)
+    packed = tmp_path / "bad.csv.gz"
+    packed.write_bytes(gzip.compress(text))
+    for path in (plain, packed):
+        for lenient in (False, True):
+            with pytest.raises(InputError, match=r"line 3: byte 14 \(0xff\) is not UTF-8 text"):
+                list(iter_csv_tables(path, 100, lenient=lenient))
+    captured = capsys.readouterr()
+    assert "Exception ignored" not in captured.err + captured.out
+    assert sys.unraisablehook is hook  # the reader's silencing ends with its calls

@@ -24,7 +24,6 @@ from __future__ import annotations
 import csv
 import gzip
 import zlib
-import io
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +35,7 @@ import pyarrow as pa
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 
+from skytrack.io.csv_text import open_text, undecodable_error, undecodable_lines_silenced
 from skytrack.io.csv_types import typed_csv_chunk
 from skytrack.io.errors import InputError, ReadReport
 from skytrack.io.schema import STRING_DTYPE, TEXT_COLUMNS
@@ -62,12 +62,6 @@ def table_format(path: str | Path) -> str:
         "unsupported file extension; use .parquet, .pq, .csv or .csv.gz",
         file=str(path),
     )
-
-
-def _open_text(path: Path) -> io.TextIOBase:
-    if path.name.lower().endswith(".gz"):
-        return gzip.open(path, "rt", encoding="utf-8-sig", newline="")
-    return open(path, encoding="utf-8-sig", newline="")  # pyarrow skips a BOM too
 
 
 #: raised on a damaged .gz stream (BadGzipFile is an OSError) and on a damaged Parquet file (non-UTF-8 names)
@@ -169,7 +163,7 @@ class TableSource:
 
     def _records(self) -> Iterator[tuple[int, list[str]]]:
         """(start line, fields) of every CSV record, blank lines included as []."""
-        with _open_text(self.path) as stream:
+        with open_text(self.path) as stream:
             reader = csv.reader(stream)
             last_line = 0
             for record in reader:
@@ -330,7 +324,7 @@ def count_rows(path: str | Path) -> int | None:
 
 def _csv_header(path: Path) -> list[str]:
     try:
-        with _open_text(path) as stream:
+        with open_text(path) as stream:
             for record in csv.reader(stream):
                 if record:
                     return record
@@ -458,12 +452,15 @@ def iter_csv_tables(
     pending: list[pa.RecordBatch] = []
     pending_rows = 0
     reader = None
+    undecodable: list[BaseException] = []  # what pyarrow could not raise (csv_text.py)
     try:
-        reader = pcsv.open_csv(path, read_options=read, parse_options=parse, convert_options=convert)
+        with undecodable_lines_silenced(undecodable):
+            reader = pcsv.open_csv(path, read_options=read, parse_options=parse, convert_options=convert)
         schema = reader.schema
         while True:
             try:
-                batch = reader.read_next_batch()
+                with undecodable_lines_silenced(undecodable):
+                    batch = reader.read_next_batch()
             except StopIteration:
                 break
             if strict and source.n_invalid_lines:
@@ -480,7 +477,8 @@ def iter_csv_tables(
                 rest = table.slice(chunk_rows)
                 pending, pending_rows = rest.to_batches(), rest.num_rows
     except (pa.ArrowException, OSError) as exc:
-        raise InputError(f"cannot read as CSV ({_reason(exc)})", file=str(path)) from None
+        raise undecodable_error(path, undecodable) or InputError(f"cannot read as CSV ({_reason(exc)})",
+                                                                   file=str(path)) from None
     finally:
         if reader is not None:
             reader.close()
