@@ -102,20 +102,25 @@ class ClutterMap:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def log_density_at(r, az, grid, params, log_area):
-    """ln beta of one plot (:meth:`ClutterMap.log_density`)."""
-    range_cells = grid.shape[1]
-    azimuth_cells = grid.shape[2]
+def _cell_of(r, az, range_cells, azimuth_cells, cell_range):
+    """The (range, azimuth) cell of a plot (:meth:`ClutterMap.cells`); NaN goes to cell 0."""
     rc = 0
     if r == r:
-        rc = min(max(int(min(r / params[CELL_RANGE], range_cells)), 0), range_cells - 1)
+        rc = min(max(int(min(r / cell_range, range_cells)), 0), range_cells - 1)
     ac = 0
     if az == az:
         turn = az / (2.0 * np.pi)
         turn -= np.floor(turn)
         ac = min(max(int(turn * azimuth_cells), 0), azimuth_cells - 1)
+    return rc, ac
+
+
+@njit(cache=True, nogil=True, inline="always")
+def log_density_at(r, az, grid, params, log_area):
+    """ln beta of one plot (:meth:`ClutterMap.log_density`)."""
+    rc, ac = _cell_of(r, az, grid.shape[1], grid.shape[2], params[CELL_RANGE])
     rate = (grid[0, rc, ac] + grid[1, rc, ac] * params[SCALE]) / (params[PRIOR_SCANS] + params[EXPOSURE])
-    return np.log(rate) - log_area[rc], rc, ac
+    return np.log(rate) - log_area[rc]
 
 
 @njit(cache=True, nogil=True)
@@ -129,5 +134,5 @@ def observe_kernel(range_m, azimuth, plot_stage, scans, grid, params, log_area):
         params[SCALE] = 1.0
     for j in range(len(range_m)):
         if plot_stage[j] != 0 and plot_stage[j] != 1:
-            _, rc, ac = log_density_at(range_m[j], azimuth[j], grid, params, log_area)
+            rc, ac = _cell_of(range_m[j], azimuth[j], grid.shape[1], grid.shape[2], params[CELL_RANGE])
             grid[1, rc, ac] += 1.0 / params[SCALE]

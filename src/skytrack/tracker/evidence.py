@@ -166,8 +166,7 @@ def ssr_log_ratio(plot_code, plot_alt, track_code, track_alt, dt, ssr):
             d = plot_alt - track_alt
             near = ssr[LOG_KEEP] - 0.5 * (d * d / var + np.log(2.0 * np.pi * var)) + ssr[LOG_SPAN]
             far = ssr[LOG_GARBLE]  # g / H against 1 / H
-            top = max(near, far)
-            total += ssr[TC_HAS] - ssr[CC_HAS] + top + np.log(np.exp(near - top) + np.exp(far - top))
+            total += ssr[TC_HAS] - ssr[CC_HAS] + max(near, far) + np.log1p(np.exp(-abs(near - far)))
         else:
             total += ssr[TC_NONE] - ssr[CC_NONE]
     return total

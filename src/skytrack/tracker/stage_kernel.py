@@ -68,8 +68,7 @@ def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, l
         row = tracks[kt[c]]
         j = free[kp[c]]
         evidence = ssr_log_ratio(plot_mode3a[j], plot_mode_c[j], mode3a[row], alt_m[row], plot_time[j] - t[row], ssr)
-        log_clutter, _, _ = log_density_at(plot_range[j], plot_azimuth[j], clutter_grid, clutter_params,
-                                           clutter_log_area)
+        log_clutter = log_density_at(plot_range[j], plot_azimuth[j], clutter_grid, clutter_params, clutter_log_area)
         gain[c] = log_pd - 0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI) - log_clutter + evidence
         cost[c] = -2.0 * (gain[c] - log_miss) if llr_cost else d2[c]
     miss_cost = np.full(len(tracks), gate_miss)
