@@ -282,7 +282,9 @@ def _mutate_csv_bytes(data: bytearray, rng) -> str:
 def count_csv_records(data: bytes) -> int:
     """Data records of a CSV text as Python's csv module splits them (blank lines excluded)."""
     csv.field_size_limit(2**31 - 1)  # the "100 kB number" mutation exceeds the default limit
-    text = data.decode("utf-8", "replace").lstrip("\ufeff").replace("\x00", "")
+    # a NUL is a character of its line, as for pyarrow: between the CR and LF of a CRLF it
+    # makes a line of its own (a malformed one, skipped and counted by the reader)
+    text = data.decode("utf-8", "replace").lstrip("\ufeff").replace("\x00", "\ufffd")
     reader = csv.reader(io.StringIO(text, newline=""), strict=False)
     records = sum(1 for record in reader if record)
     return max(records - 1, 0)  # minus the header

@@ -46,3 +46,36 @@ FOUND = [("parquet_bytes", 1, 1930), ("parquet_bytes", 1, 5143), ("parquet_bytes
 def test_cases_found_by_the_large_run_are_located_errors(family, seed, index):
     (result,) = run_cases(family, seed, range(index, index + 1))
     assert result.outcome == "ok-error", result.failure_record()
+
+
+#: found by the second 100 000-case run (seed 3): ranges of 1e308 m in a plot without Mode C
+#: overflowed the bounded height model into NaN and hung the candidate search
+FOUND_PROCESSED = [("plot_values", 3, 10273)]
+
+
+@pytest.mark.parametrize("family, seed, index", FOUND_PROCESSED)
+def test_cases_found_by_the_second_large_run_are_processed(family, seed, index):
+    (result,) = run_cases(family, seed, range(index, index + 1))
+    assert result.outcome in ("ok-processed", "ok-skip", "ok-error"), result.failure_record()
+
+
+def test_a_nul_between_cr_and_lf_is_a_counted_line_of_its_own(tmp_path):
+    """The second large run's other case: CRLF line ends with a NUL between a CR and its LF.
+    The reader sees a line holding only the NUL and skips it as malformed, counted; the
+    oracle counts that line too, so tracked + skipped = lines with data."""
+    from fuzz_inputs import base_inputs
+    from fuzz_mutations import count_csv_records
+
+    from skytrack.app.run import run_tracking
+
+    base = base_inputs()
+    data = bytes(base.csv_bytes).replace(b"\n", b"\r\n")
+    cut = data.index(b"\r\n", len(data) // 2) + 1
+    damaged = data[:cut] + b"\x00" + data[cut:]
+    plots, sensors = tmp_path / "plots.csv", tmp_path / "sensors.json"
+    plots.write_bytes(damaged)
+    sensors.write_text(json.dumps(base.sensors))
+    summary = run_tracking(plots, sensors, tmp_path / "tracks.parquet", lenient=True, chunk_rows=64)
+    assert count_csv_records(damaged) == count_csv_records(data) + 1
+    assert summary.report.rows_skipped == 1
+    assert summary.plots + summary.report.rows_skipped == count_csv_records(damaged)

@@ -27,9 +27,11 @@ def test_ceiling_caps_the_upper_bound_and_the_horizon_wins_beyond_it():
     height, sigma = bounded_height(np.array([200_000.0, 600_000.0]), 0.0, 30.0, 13_700.0, 30.0)
     low = math.sqrt(200_000.0**2 + (REFRACTION_K * EARTH_RADIUS_M) ** 2) - REFRACTION_K * EARTH_RADIUS_M
     assert height[0] == pytest.approx(0.5 * (low + 13_700.0))
-    # 600 km: the horizon height (~21 km) is above the ceiling: the plot sits at the horizon height
-    low_far = math.sqrt(600_000.0**2 + (REFRACTION_K * EARTH_RADIUS_M) ** 2) - REFRACTION_K * EARTH_RADIUS_M
-    assert height[1] == pytest.approx(low_far) and sigma[1] == 30.0
+    # 600 km: the horizon height (~21 km) is above the ceiling: the plot sits at the ceiling
+    assert height[1] == 13_700.0 and sigma[1] == 30.0
+    # absurd ranges do not overflow
+    absurd, spread = bounded_height(np.array([1e308, np.inf]), 0.0, 30.0, 13_700.0, 30.0)
+    assert np.all(absurd == 13_700.0) and np.all(spread == 30.0)
 
 
 def test_geometry_uses_a_fixed_default_only_when_given():

@@ -15,7 +15,8 @@ The bounded model says what the radar does know: at slant range ``r`` the target
   geometric sphere, capped at the aircraft ceiling ``max_altitude_m``:
   ``h_hi = min(sqrt(r^2 + (R + h_s)^2 + 2 r (R + h_s) sin e_max) - R, ceiling)``.
 
-The plot is placed at the middle of ``[h_lo, h_hi]`` with the standard deviation of a uniform
+Where ``h_lo`` is above the ceiling (beyond the range at which the horizon reaches it) the
+plot is placed at the ceiling.  The plot is placed at the middle of ``[h_lo, h_hi]`` with the standard deviation of a uniform
 distribution over it, ``(h_hi - h_lo) / sqrt(12)`` (never below ``min_sigma_m``); the
 conversion carries that spread into the plot's range uncertainty through the projection's
 derivative.  The placed height never exceeds the slant range, so no plot lands on the antenna.
@@ -39,11 +40,14 @@ def bounded_height(slant_range_m: np.ndarray, sensor_alt_m: float, max_elevation
                    max_altitude_m: float, min_sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Height (m above the ellipsoid) and its standard deviation for plots at ``slant_range_m``."""
     r = np.asarray(slant_range_m, dtype=float)
-    effective = REFRACTION_K * EARTH_RADIUS_M + sensor_alt_m
-    low = np.sqrt(r * r + effective * effective) - REFRACTION_K * EARTH_RADIUS_M
+    # hypot: no overflow for absurd ranges (they are placed at the ceiling, like any plot
+    # whose lowest possible height is above it)
+    low = np.minimum(np.hypot(r, REFRACTION_K * EARTH_RADIUS_M + sensor_alt_m) - REFRACTION_K * EARTH_RADIUS_M,
+                     max_altitude_m)
     geometric = EARTH_RADIUS_M + sensor_alt_m
-    sin_e = math.sin(math.radians(max_elevation_deg))
-    high = np.sqrt(r * r + geometric * geometric + 2.0 * r * geometric * sin_e) - EARTH_RADIUS_M
+    e_max = math.radians(max_elevation_deg)
+    # r^2 + g^2 + 2 r g sin(e) = (r + g sin e)^2 + (g cos e)^2
+    high = np.hypot(r + geometric * math.sin(e_max), geometric * math.cos(e_max)) - EARTH_RADIUS_M
     high = np.maximum(np.minimum(high, max_altitude_m), low)
     return 0.5 * (low + high), np.maximum((high - low) / math.sqrt(12.0), min_sigma_m)
 
