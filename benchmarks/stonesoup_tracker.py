@@ -23,8 +23,8 @@ The tracker (all standard Stone Soup parts):
   ``GNNWith2DAssignment``;
 * a conservative pre-gate in front of the hypothesiser (:class:`PreGate`, on by default,
   ``--no-pregate`` turns it off): Stone Soup scores every track against every plot of a scan
-  with a full EKF prediction (about 1 ms a pair here: a 15-minute window with clutter took
-  over 20 minutes), and its own kd-tree pre-filter (``DetectionKDTreeGNN2D``) needs one
+  with a full EKF prediction (on the first 150 s of a cluttered window: 61.6 s CPU without the
+  pre-gate, 2.9 s with it, identical tracks; 2026-11-24), and its own kd-tree pre-filter (``DetectionKDTreeGNN2D``) needs one
   measurement model for all plots, which the per-plot height conversion rules out.  The
   pre-gate drops a pair only when its Cartesian distance proves the Mahalanobis distance is
   beyond the gate (see :class:`PreGate`), so the hypotheses, and the tracks, are the same;

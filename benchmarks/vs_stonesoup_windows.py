@@ -8,9 +8,9 @@ the benchmark's reported windows) and a source:
 * :class:`ScenarioSource`: ``skytrack simulate SCENARIO --seed SEED -o FOLDER`` on a copy of
   the scenario YAML whose ``seed`` (trajectories) is replaced by SEED, so each seed gives
   other aircraft, other noise and other clutter.  ``simulate_args`` is passed on to
-  ``skytrack simulate``: a window on recorded trajectories is one more entry, e.g.
-  ``ScenarioSource(SCENES / "recorded.yaml", 1, ("--trajectories", "flights.parquet"))``
-  once that option exists (or a scenario section naming the file, with no extra argument).
+  ``skytrack simulate``: the windows on recorded trajectories are entries with
+  ``("--start", UTC, "--duration", SECONDS)`` on a scenario whose ``recorded`` section names
+  the recording (``--trajectories FILE`` would name another one).
 * :class:`FolderSource`: a folder made beforehand (by ``skytrack simulate`` or any tool
   that writes the docs/formats.md layout), used as it is.
 
@@ -62,6 +62,9 @@ class ScenarioSource:
                 for part in parents:
                     node = node[int(part)] if isinstance(node, list) else node[part]
                 node[int(last) if isinstance(node, list) else last] = value
+            recorded = document.get("recorded") or {}
+            if "path" in recorded:  # relative to the original file, which the copy is not next to
+                recorded["path"] = str((self.scenario.parent / recorded["path"]).resolve())
             scenario = folder / "scenario.yaml"
             scenario.write_text(yaml.safe_dump(document, sort_keys=False))
         command = [sys.executable, "-m", "skytrack", "simulate", str(scenario), "-o", str(folder), *seed_args,
@@ -102,6 +105,13 @@ WINDOWS: tuple[Window, ...] = (
     Window("report-1", "report", ScenarioSource(SCENES / "reported.yaml", 1001)),
     Window("report-2", "report", ScenarioSource(SCENES / "reported.yaml", 1002)),
     Window("report-3", "report", ScenarioSource(SCENES / "reported.yaml", 1003)),
+    # recorded aircraft as truth (docs/recorded.md): the windows of the Swiss recording with
+    # at least 30 aircraft in coverage at every instant; the noise seed differs per window
+    *(Window(f"swiss-{start[:2]}{start[3:5]}", "report",
+             ScenarioSource(SCENES / "recorded_switzerland.yaml", seed,
+                            ("--start", f"2018-08-01T{start}:00Z", "--duration", str(minutes * 60))))
+      for start, minutes, seed in (("09:30", 10, 3001), ("11:20", 20, 3002), ("11:40", 20, 3003),
+                                   ("13:40", 10, 3004))),
     # no clutter: checks the Stone Soup side's conversion to the tracks layout (its position
     # RMSE should be near the radar's cross-range error, 125 km x 0.1 deg = 218 m at mid range)
     Window("check-clutter-free", "check",
