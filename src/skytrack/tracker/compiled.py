@@ -106,10 +106,10 @@ class CompiledStages:
         self.scoring.observe(s, plots.range_m, plots.azimuth, plots.mode3a, plots.mode_c_m, plot_stage, scans)
 
     def _score_settings(self, s: int) -> tuple:
-        """(log_miss, score_logic, confirm_score, drop_score, delete_drop) of sensor ``s``'s window."""
+        """(log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots) of sensor ``s``'s window."""
         scoring = self.scoring
         return (scoring.log_miss[s], self.config.score.track_logic == "score", self._evidence[1], self._evidence[2],
-                scoring.delete_drop[s])
+                scoring.delete_drop[s], min(self.config.score.confirm_min_plots, self.config.lifecycle.confirm_n))
 
     def _switch_arrays(self):
         """The psi switch's arrays and settings for the kernels (dummies for a plain Kalman filter)."""

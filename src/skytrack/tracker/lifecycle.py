@@ -60,9 +60,11 @@ class Lifecycle:
         self.stats["misses"] += int(missed.sum())
 
     def manage(self, bank: TrackBank, outside: np.ndarray | None = None, score_logic: bool = False,
-               confirm_score: float = np.inf, drop_score: float = -np.inf, delete_drop: float = np.inf) -> None:
+               confirm_score: float = np.inf, drop_score: float = -np.inf, delete_drop: float = np.inf,
+               min_plots: int = 1) -> None:
         """Confirm, drop hopeless tentative tracks, delete lost confirmed ones: by hit counts, or
-        with ``score_logic`` by the track score (thresholds of :mod:`skytrack.tracker.evidence`).
+        with ``score_logic`` by the track score (thresholds of :mod:`skytrack.tracker.evidence`;
+        at least ``min_plots`` plots among the last ``confirm_n`` events to confirm).
         Tracks flagged ``outside`` every radar's coverage (the rows before this window's new
         tracks) are deleted at once."""
         cfg = self.config
@@ -73,7 +75,8 @@ class Lifecycle:
             gone[: len(outside)] = outside
         hits = np.bitwise_count(bank.hit_bits).astype(np.int64)
         tentative = (bank.status == TENTATIVE) & ~gone
-        confirm = tentative & ((bank.score >= confirm_score) if score_logic else (hits >= cfg.confirm_m))
+        confirm = tentative & (((bank.score >= confirm_score) & (hits >= min_plots)) if score_logic
+                               else (hits >= cfg.confirm_m))
         bank.status[confirm] = CONFIRMED
         bank.confirmed_at[confirm] = bank.t[confirm]
         self.stats["tracks_confirmed"] += int(confirm.sum())

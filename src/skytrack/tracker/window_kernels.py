@@ -93,12 +93,13 @@ def _horizon(sensor_alt, target_alt):
 @njit(cache=True, nogil=True)
 def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t, status,
                       hit_bits, n_events, n_misses, last_event, confirmed_at, score, score_max, log_miss, score_logic,
-                      confirm_score, drop_score, delete_drop, outside):
+                      confirm_score, drop_score, delete_drop, min_plots, outside):
     """Events of this window, then the life-cycle decisions; returns the keep mask and counts
     (misses, confirmed, hopeless, lost).  ``hit``/``expected`` cover the rows that existed before
     the window's new tracks; the decisions cover all ``len(status)`` rows.  A miss adds
     ``log_miss`` to the score; with ``score_logic`` a tentative track is confirmed at
-    ``confirm_score`` and dropped below ``drop_score``, a confirmed one deleted when its score is
+    ``confirm_score`` once it has ``min_plots`` plots among its last ``confirm_n`` events, and
+    dropped below ``drop_score``, a confirmed one deleted when its score is
     ``delete_drop`` below its maximum (else M-of-N and ``delete_misses``).  A track ``outside``
     every radar's coverage is deleted at once (counted in ``lost``)."""
     mask = np.uint32((1 << confirm_n) - 1)
@@ -133,7 +134,7 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
             hits += bits & np.uint32(1)
             bits >>= np.uint32(1)
         if status[k] == 0:
-            if (score[k] >= confirm_score) if score_logic else (hits >= confirm_m):
+            if (score[k] >= confirm_score and hits >= min_plots) if score_logic else (hits >= confirm_m):
                 status[k] = 1
                 confirmed_at[k] = t[k]
                 confirmed += 1
@@ -159,7 +160,8 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
                        plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                        max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
                        n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
-                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, plot_range, plot_azimuth,
+                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, plot_range,
+                       plot_azimuth,
                        plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside):
     """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
     one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
@@ -209,7 +211,7 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
     keep, misses, confirmed, hopeless, lost = record_and_manage(
         hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t[:rows], status[:rows],
         hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows], score[:rows],
-        score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop, outside)
+        score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, outside)
     m = 0
     for k in range(rows):
         if not keep[k]:
