@@ -158,6 +158,8 @@ def run_fuzz(cases: int, seed: int, workers: int, batch: int = 250) -> tuple[dic
         for done, (family, counts, failed) in enumerate(pool.map(_tally, *zip(*jobs)), 1):
             totals[family].update(counts)
             failures.extend(failed)
+            for record in failed:  # at once, so that a long run can be looked into while it goes on
+                print(f"  failure: {json.dumps(record)}", file=sys.stderr, flush=True)
             print(f"  {done}/{len(jobs)} batches, {len(failures)} failures so far", file=sys.stderr, flush=True)
     return totals, failures
 
