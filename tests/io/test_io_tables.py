@@ -252,3 +252,16 @@ def test_a_malformed_csv_line_that_is_not_utf8_is_a_located_error_without_noise(
     captured = capsys.readouterr()
     assert "Exception ignored" not in captured.err + captured.out
     assert sys.unraisablehook is hook  # the reader's silencing ends with its calls
+
+
+def test_a_csv_header_that_is_not_utf8_is_a_located_error(tmp_path):
+    """Found by the fuzz run of seed 5: pyarrow builds column names from the header's raw bytes
+    and fails on them outside the reader; the header check names line 1 instead."""
+    from skytrack.io.errors import InputError
+    from skytrack.io.tables import iter_csv_tables
+
+    path = tmp_path / "bad_header.csv"
+    path.write_bytes(b"sensor,ti\x80me,range_m,azimuth_deg\nradar1,1,2,3\n")
+    for lenient in (False, True):
+        with pytest.raises(InputError, match="line 1: the header is not UTF-8 text"):
+            list(iter_csv_tables(path, 100, lenient=lenient))

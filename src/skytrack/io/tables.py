@@ -326,6 +326,8 @@ def _csv_header(path: Path) -> list[str]:
     try:
         with open_text(path) as stream:
             for record in csv.reader(stream):
+                if record and any("\ufffd" in name for name in record):  # open_text's stand-in for non-UTF-8
+                    raise InputError("the header is not UTF-8 text", file=str(path), line=1)
                 if record:
                     return record
     except (*_GZIP_ERRORS, UnicodeDecodeError, csv.Error) as exc:
