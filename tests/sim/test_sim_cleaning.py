@@ -128,8 +128,9 @@ def test_garbage_at_the_start_of_a_recording_goes():
 def test_a_single_jump_between_two_long_runs_is_left_alone():
     states = track()
     states.loc[30:, "lat"] += FIVE_KM_DEG  # which side is wrong is unknown
-    _, report = clean_states(states)
+    cleaned, report = clean_states(states)
     only(report)
+    assert len(cleaned) == len(states) and removed_times(states, cleaned) == []
 
 
 def test_an_altitude_spike_is_replaced_by_interpolation():
