@@ -1,8 +1,9 @@
 """Registry of filter families: a kind name -> a factory building the filter from a motion model.
 
-Adding a family is one module plus one ``@register_filter("kind")`` factory here (or in the
-module itself, imported below); the tracker's configuration, the CLI's ``--filter`` option
-and the conformance suite all read :data:`FILTERS`.
+Adding a family is one module in ``skytrack/filters/`` with a ``@register_filter("kind")``
+factory: every module of the package is imported when this registry is first imported
+(:func:`_discover_families`), so nothing else needs editing; the tracker's configuration,
+the CLI's ``--filter`` option and the conformance suite all read :data:`FILTERS`.
 
 A factory is called as ``factory(motion, **options)`` with the tracker's motion model
 (:class:`~skytrack.models.motion.MotionModel`) and the options of the configuration's
@@ -11,9 +12,13 @@ A factory is called as ``factory(motion, **options)`` with the tracker's motion 
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from collections.abc import Callable
 
 import numpy as np
+
+import skytrack.filters
 
 from skytrack.filters.base import BatchFilter
 from skytrack.filters.imm import IMMFilter
@@ -68,3 +73,13 @@ def _imm(motion: MotionModel, q_scales: tuple[float, ...] = (1.0, 3000.0), mean_
     rates = np.array([[0.0 if i == j else 1.0 / (mean_sojourn_s[i] * (count - 1)) for j in range(count)]
                       for i in range(count)])
     return IMMFilter(modes, rates)
+
+
+def _discover_families() -> None:
+    """Import every module of ``skytrack.filters`` so that their ``@register_filter`` factories run."""
+    for info in pkgutil.iter_modules(skytrack.filters.__path__):
+        if not info.ispkg and not info.name.startswith("_") and info.name != "registry":
+            importlib.import_module(f"skytrack.filters.{info.name}")
+
+
+_discover_families()
