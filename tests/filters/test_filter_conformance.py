@@ -461,8 +461,8 @@ def test_reference_path_counts_shape_implied_multiply_adds(kind, motion):
     assert ops.madds > 0 and ops.madds == sum(ops.by_name.values())
     if kind == "kalman":
         k, n, m = 4, case.n, case.ndim
-        expected = k * (m * n * n + m * n * m + m**3 // 6 + m + m * m // 2 + m)  # innovate: sandwich, cholesky, d2
-        expected += k * (n * n * m + m * m * n + n * m + n * m * n)  # P H^T, cho_solve, K nu, K H
+        expected = k * (m * n * n + m * n * m + m**3 / 3 + m * m + m)  # innovate: sandwich, cholesky, d2 (R22)
+        expected += k * (n * n * m + 2 * m * m * n + n * m + n * m * n)  # P H^T, cho_solve, K nu, K H
         expected += k * (n * m * m + n * m * n) + k * 2 * n**3  # sandwich(K, R), sandwich(A, P)
         assert ops.madds == expected
 

@@ -8,7 +8,10 @@ modes or Monte Carlo runs (DESIGN.md rule 1).  They are plain numpy; what they a
   the Mahalanobis distance ``d^2 = nu^T S^-1 nu`` of spec 000 R7), and
 * a multiply-add counter: inside ``with counting() as ops:`` every call adds the
   multiply-adds its shapes imply to ``ops.madds`` (by operation name in ``ops.by_name``),
-  so that a filter's cost per update (spec 004) is measured, not guessed.
+  so that a filter's cost per update (spec 004 R22) is measured, not guessed.  The cost
+  model is spec 004 R22's: a product ``(a x b)(b x c)`` costs ``a b c``, a Cholesky
+  factorisation of ``n x n`` costs ``n^3 / 3``, a triangular solve with ``r`` right-hand
+  sides ``n^2 r`` and an explicit inverse ``n^3``; counts are floats because of the third.
 
 Counting is off by default and costs one global lookup per call when off.
 """
@@ -29,12 +32,12 @@ LOG_2PI = math.log(2.0 * math.pi)
 class OperationCount:
     """Multiply-adds counted inside one ``counting()`` block."""
 
-    madds: int = 0
+    madds: float = 0.0
     by_name: Counter = field(default_factory=Counter)
 
-    def add(self, name: str, count: int) -> None:
-        self.madds += int(count)
-        self.by_name[name] += int(count)
+    def add(self, name: str, count: float) -> None:
+        self.madds += float(count)
+        self.by_name[name] += float(count)
 
 
 _active: list[OperationCount] = []
@@ -56,7 +59,7 @@ def is_counting() -> bool:
     return bool(_active)
 
 
-def count(name: str, madds: int) -> None:
+def count(name: str, madds: float) -> None:
     """Add ``madds`` multiply-adds under ``name`` to every active counter (for compiled kernels)."""
     for counter in _active:
         counter.add(name, madds)
@@ -113,7 +116,7 @@ def cholesky(S: np.ndarray) -> np.ndarray:
         raise ValueError("innovation covariance is not positive definite") from None
     if _active:
         m = S.shape[-1]
-        _count("cholesky", _batch(S.shape[:-2]) * (m**3 // 6 + m))
+        _count("cholesky", _batch(S.shape[:-2]) * cholesky_cost(m))
     return L
 
 
@@ -125,7 +128,7 @@ def cho_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     y = np.linalg.solve(np.swapaxes(L, -1, -2), w)
     if _active:
         m = L.shape[-1]
-        _count("cho_solve", _batch(L.shape[:-2], rhs.shape[:-2]) * m * m * rhs.shape[-1])
+        _count("cho_solve", _batch(L.shape[:-2], rhs.shape[:-2]) * 2 * m * m * rhs.shape[-1])
     return y[..., 0] if vector else y
 
 
@@ -134,8 +137,22 @@ def mahalanobis_chol(nu: np.ndarray, L: np.ndarray) -> np.ndarray:
     w = np.linalg.solve(L, nu[..., None])[..., 0]
     if _active:
         m = L.shape[-1]
-        _count("mahalanobis", _batch(L.shape[:-2], nu.shape[:-1]) * (m * m // 2 + m))
+        _count("mahalanobis", _batch(L.shape[:-2], nu.shape[:-1]) * (m * m + m))
     return np.einsum("...i,...i->...", w, w)
+
+
+def inv(A: np.ndarray) -> np.ndarray:
+    """Explicit inverses of a stack of square matrices (counted as ``n^3`` each, R22)."""
+    out = np.linalg.inv(A)
+    if _active:
+        n = A.shape[-1]
+        _count("inv", _batch(A.shape[:-2]) * n**3)
+    return out
+
+
+def cholesky_cost(n: int) -> float:
+    """Multiply-adds of an ``n x n`` Cholesky factorisation in the R22 model: ``n^3 / 3``."""
+    return n**3 / 3.0
 
 
 def logdet_chol(L: np.ndarray) -> np.ndarray:

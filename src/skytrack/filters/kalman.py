@@ -101,7 +101,7 @@ class KalmanFilter(BatchFilter):
                 raise ValueError("innovation covariance is not positive definite")
             if linalg.is_counting():
                 rows, mm, n = H.shape
-                linalg.count("innovate_dense", rows * (mm * n * n + mm * mm * n + mm**3 // 6 + mm + mm * mm // 2 + mm))
+                linalg.count("innovate_dense", rows * (mm * n * n + mm * mm * n + linalg.cholesky_cost(mm) + mm * mm + mm))
         else:
             S = linalg.sandwich(H, state.P, R)
             L = linalg.cholesky(S)
