@@ -90,8 +90,9 @@ class PolynomialAxis(AxisModel):
                     p = 2 * m - 1 - i - j
                     Q[..., i, j] = q * t**p / (p * math.factorial(m - 1 - i) * math.factorial(m - 1 - j))
             return Q
-        g = self.noise_gain(t)
-        return self.intensity**2 * g[..., :, None] * g[..., None, :]
+        # sigma_w g first, so that Q is exactly symmetric
+        g = self.intensity * self.noise_gain(t)
+        return g[..., :, None] * g[..., None, :]
 
 
 def polynomial(ndim: int, order: int, noise: str = "continuous", intensity: float = 0.0) -> MotionModel:

@@ -157,12 +157,13 @@ class CoordinatedTurn:
     def _q2(self, t: np.ndarray) -> np.ndarray:
         Q = np.zeros(t.shape + (2 * self.ndim, 2 * self.ndim))
         vertical = self.sigma_w if self.sigma_w_vertical is None else self.sigma_w_vertical
-        g = (t * t / 2.0, t)
         for axis in range(self.ndim):
-            var = (vertical if axis == 2 else self.sigma_w) ** 2
+            sigma = vertical if axis == 2 else self.sigma_w
+            # sigma g first, so that Q is exactly symmetric
+            g = (sigma * (t * t / 2.0), sigma * t)
             for i in range(2):
                 for j in range(2):
-                    Q[..., 2 * axis + i, 2 * axis + j] = var * g[i] * g[j]
+                    Q[..., 2 * axis + i, 2 * axis + j] = g[i] * g[j]
         return Q
 
     def _embed(self, M2: np.ndarray, columns: bool) -> np.ndarray:
