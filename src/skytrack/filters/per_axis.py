@@ -42,7 +42,6 @@ from skytrack.filters.base import (
     UpdateStats,
 )
 from skytrack.filters.kalman import KalmanFilter
-from skytrack.filters.registry import register_filter
 from skytrack.models.motion import MotionModel
 
 
@@ -248,6 +247,12 @@ class PerAxisKalmanFilter(RecorderSharing, BatchFilter):
         if self.recorder.active:
             self.recorder.record("gain", np.arange(rows), gain=block_gain(k))
         return AxisBlockState(x, P_axes), UpdateStats(innovation.d2 / innovation.m)
+
+
+# Imported here, after the shared pieces: importing the registry imports every filter module, and the
+# siblings that use the pieces above (transformed gain, pseudo-noise, adaptive, piecewise gain) must
+# find them defined even when this module is the one being imported first.
+from skytrack.filters.registry import register_filter  # noqa: E402
 
 
 @register_filter("kalman-per-axis")
