@@ -63,7 +63,15 @@ def buildable(kind, motion, compiled):
 
 
 def is_mixture(filt) -> bool:
-    return issubclass(filt.state_type, MixtureState)
+    return filt.capabilities.multiple_model
+
+
+def first_model(filt, motion):
+    """The motion model truth is simulated from: a multiple-model filter's first mode, else ``motion``."""
+    for name in ("modes", "members"):
+        if hasattr(filt, name):
+            return getattr(filt, name)[0].transition
+    return motion
 
 
 def kinds_cases() -> list:
@@ -147,10 +155,15 @@ def assert_state_equal(a, b):
         assert got.dtype == value.dtype and np.array_equal(got, value), name
 
 
-def assert_spd(P, what=""):
+def assert_spd(P, what="", semidefinite=False):
+    """Symmetric to 1e-9 and positive definite (``semidefinite``: eigenvalues >= -1e-9 x the largest)."""
     asym = np.max(np.abs(P - np.swapaxes(P, -1, -2)), axis=(-1, -2)) / np.max(np.abs(P), axis=(-1, -2))
     assert np.all(asym <= 1e-9), f"{what}: asymmetry {asym.max():.2e}"
-    assert np.linalg.eigvalsh(P).min() > 0.0, f"{what}: not positive definite"
+    eig = np.linalg.eigvalsh(P)
+    if semidefinite:
+        assert np.all(eig[..., 0] >= -1e-9 * eig[..., -1]), f"{what}: not positive semidefinite"
+    else:
+        assert eig.min() > 0.0, f"{what}: not positive definite"
 
 
 def sqrt_psd(Q):
@@ -204,10 +217,15 @@ def check_covariance_spd(kind, motion, compiled):
     rng = np.random.default_rng(3)
     steps = []
 
+    # Multiple-model filters on 3 states per axis embed CV and CT with zero acceleration rows
+    # (spec 004 §3.3 B): such a mode knows its acceleration exactly, so its covariance -- and a
+    # bank's output while only that member is active -- is singular there: semidefinite.
+    embedded = is_mixture(case.filt) and case.order == 3
+
     def check(state):
-        assert_spd(state.estimate().P, f"estimate step {len(steps)}")
+        assert_spd(state.estimate().P, f"estimate step {len(steps)}", semidefinite=embedded)
         if isinstance(state, MixtureState):
-            assert_spd(state.P.reshape(-1, case.n, case.n), "mode covariance")
+            assert_spd(state.P.reshape(-1, case.n, case.n), "mode covariance", semidefinite=embedded)
         steps.append(1)
 
     case.run(rng, case.initial(rng, 8), 200, check=check)
@@ -244,7 +262,7 @@ def check_nees(kind, motion, compiled, runs=200, steps=50, dt=2.0, seed=20240605
     """Time-averaged NEES of the estimate over ``runs`` rows simulated from the filter's motion model."""
     case = Case(kind, motion, compiled)
     filt, n, ndim = case.filt, case.n, case.ndim
-    sim = filt.modes[0].transition if hasattr(filt, "modes") else case.motion
+    sim = first_model(filt, case.motion)
     F = sim.F_batch(np.array([dt]))[0]
     Qs = sqrt_psd(sim.Q_batch(np.array([dt]))[0])
     H = np.zeros((ndim, n))
@@ -380,8 +398,9 @@ def test_state_saves_and_reloads_identically(kind, motion, compiled, tmp_path):
     dt = rng.uniform(0.1, 10.0, 6)
     z, R = case.measurement(rng, case.filt.predict(state, dt))
     assert_state_equal(case.cycle(loaded, dt, z, R)[2], case.cycle(state, dt, z, R)[2])
+    missing = sorted(arrays)[0]
     with pytest.raises(ValueError):
-        type(state).from_arrays({k: v for k, v in arrays.items() if k != "P"})
+        type(state).from_arrays({k: v for k, v in arrays.items() if k != missing})
 
 
 @pytest.mark.parametrize("kind,motion,compiled", conformance_cases(compiled=(True,)))
@@ -437,11 +456,16 @@ def test_innovation_take_equals_innovating_those_rows(kind, motion, compiled):
 def test_mixture_estimate_is_moment_matched(kind, motion, compiled):
     case = Case(kind, motion, compiled)
     rng = np.random.default_rng(11)
-    state = case.run(rng, case.initial(rng, 5), 10, spread=(0.5, 8.0))
+    # 8 cycles: a static bank's divergence test starts after W + 5 = 10 scans, so no member is off yet
+    state = case.run(rng, case.initial(rng, 5), 8, spread=(0.5, 8.0))
     est = state.estimate()
-    assert np.all(state.mu.min(axis=1) > 1e-6), "modes must differ for this check to mean something"
-    for r in range(len(state)):
-        mu, xs, Ps = state.mu[r], state.x[r], state.P[r]
+    # rows where at least two modes carry weight, so that the spread-of-means term matters
+    mixed = np.flatnonzero(np.sort(state.mu, axis=1)[:, -2] > 1e-6)
+    assert mixed.size >= 3, "modes must differ for this check to mean something"
+    # a bank's members may be of any family: their own estimates are the components
+    mode_x, mode_P = state.member_estimates() if hasattr(state, "member_estimates") else (state.x, state.P)
+    for r in mixed:
+        mu, xs, Ps = state.mu[r], mode_x[r], mode_P[r]
         x = sum(mu[j] * xs[j] for j in range(len(mu)))
         P = sum(mu[j] * (Ps[j] + np.outer(xs[j] - x, xs[j] - x)) for j in range(len(mu)))
         assert_rel(est.x[r], x, 1e-12, "x")

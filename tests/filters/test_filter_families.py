@@ -107,30 +107,27 @@ def test_manoeuvre_context_forces_psi(compiled):
 
 
 # ---------------------------------------------------------------------------- IMM
-def test_imm_transition_matrix():
-    """Two-state chain leaving mode 0 at a = 1/60 s^-1 and mode 1 at b = 1/15 s^-1 (registry defaults):
-    Pi_01(t) = a/(a+b) (1 - e^{-(a+b)t}), Pi_10(t) = b/(a+b) (1 - e^{-(a+b)t}), stationary (0.8, 0.2)."""
-    filt = build_filter("imm", constant_velocity(2, 1.0))
-    np.testing.assert_allclose(filt.transition_matrix(np.zeros(1))[0], np.eye(2), rtol=0, atol=1e-15)
-    dt = np.array([0.01, 0.5, 4.0, 60.0, 1e3])
+def noise_level_imm(motion, compiled=True):
+    """The two-mode IMM of the motion model and its 3000-fold process noise, mean sojourn 60 s / 15 s."""
+    return build_filter("imm", motion, model_set="noise-levels", sojourn_s=(60.0, 15.0), compiled=compiled)
+
+
+def test_imm_sojourn_transition_matrix():
+    """pi_jj = max(0, 1 - T/tau_j), the rest spread evenly (spec 004 §3.3 O): a zero step mixes nothing,
+    rows sum to 1, and a step longer than a sojourn time leaves that mode surely."""
+    filt = noise_level_imm(constant_velocity(2, 1.0))
+    np.testing.assert_array_equal(filt.transition_matrix(np.zeros(1))[0], np.eye(2))
+    dt = np.array([0.01, 0.5, 4.0, 20.0, 1e3])
     Pi = filt.transition_matrix(dt)
-    np.testing.assert_allclose(Pi.sum(axis=2), 1.0, rtol=0, atol=1e-12)
-    assert Pi.min() >= 0.0 and Pi.max() <= 1.0
-    a, b = 1 / 60, 1 / 15
-    decay = -np.expm1(-(a + b) * dt)
-    np.testing.assert_allclose(Pi[:, 0, 1], a / (a + b) * decay, rtol=1e-12)
-    np.testing.assert_allclose(Pi[:, 1, 0], b / (a + b) * decay, rtol=1e-12)
-    np.testing.assert_allclose(filt.transition_matrix(np.array([1e4]))[0], [[0.8, 0.2], [0.8, 0.2]], atol=1e-12)
-    # Chapman-Kolmogorov: steps of any length are consistent; negative steps use |dt|
-    np.testing.assert_allclose(filt.transition_matrix(np.array([7.0]))[0],
-                               filt.transition_matrix(np.array([3.0]))[0] @ filt.transition_matrix(np.array([4.0]))[0],
-                               rtol=1e-12)
+    np.testing.assert_allclose(Pi.sum(axis=2), 1.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(Pi[:, 0, 1], np.minimum(dt / 60.0, 1.0), rtol=1e-12)
+    np.testing.assert_allclose(Pi[:, 1, 0], np.minimum(dt / 15.0, 1.0), rtol=1e-12)
     np.testing.assert_array_equal(filt.transition_matrix(np.array([-4.0])), filt.transition_matrix(np.array([4.0])))
 
 
 @pytest.mark.parametrize("compiled", [True, False])
 def test_imm_mode_probabilities_sum_to_one_and_are_recorded(compiled):
-    filt = build_filter("imm", singer(3, 20.0, 3.0), compiled=compiled)
+    filt = noise_level_imm(singer(3, 20.0, 3.0), compiled=compiled)
     filt.recorder = ListRecorder()
     model = ConvertedPositionModel(3, 3)
     rng = np.random.default_rng(3)
@@ -188,7 +185,7 @@ def test_imm_high_noise_mode_rises_in_a_turn(compiled):
     """100 runs, sigma 50 m, 1 s steps, 200 m/s.  Observed over 5 seeds: mean mu_1 ~ 0.03 over the
     last 10 s of the straight leg and ~ 0.71 from the 3rd second of the turn on, every run rising.
     Asserted with margin: the mean rises by >= 0.4, and >= 95 % of the runs rise."""
-    filt = build_filter("imm", constant_velocity(2, 1.0), compiled=compiled)
+    filt = noise_level_imm(constant_velocity(2, 1.0), compiled=compiled)
     mu1 = turn_scenario(filt, runs=100, seed=11)
     straight, turning = mu1[20:30], mu1[32:]
     assert straight.mean() < 0.15
@@ -203,7 +200,7 @@ def test_imm_nees_on_its_own_switching_model(motion):
     roughly consistent (observed mean NEES 0.99 n for CV, 1.18 n for Singer, 400 runs x 50 steps).
     Bound [0.7 n, 1.4 n]: the IMM's merging makes it approximate, so no chi-square interval applies."""
     mm = constant_velocity(2, 1.0) if motion == "cv2" else singer(3, 20.0, 3.0)
-    filt = build_filter("imm", mm)
+    filt = noise_level_imm(mm)
     runs, steps, dt = 400, 50, 2.0
     n, ndim, order = mm.dim, mm.ndim, mm.order
     model = ConvertedPositionModel(ndim, order)

@@ -400,16 +400,23 @@ def test_kalman_filter_predicts_with_coordinated_turn(compiled):
     np.testing.assert_allclose(back.x, x, rtol=1e-10, atol=1e-9)
 
 
-@pytest.mark.parametrize("model", [embed(dwna(3, 1.0)), CoordinatedTurn(0.1, 1.0, ndim=3, order=3)],
+@pytest.mark.parametrize("model,base", [(embed(dwna(3, 1.0)), dwna(3, 1.0)),
+                                        (CoordinatedTurn(0.1, 1.0, ndim=3, order=3), CoordinatedTurn(0.1, 1.0, ndim=3))],
                          ids=["cv-embedded", "ct-embedded"])
-def test_embedded_models_cannot_extrapolate_backwards(model):
-    """The m = 3 embedding has a singular F: KalmanFilter's backward prediction (dt < 0) raises
-    numpy.linalg.LinAlgError; forward prediction works."""
-    kf = KalmanFilter(model)
-    state = kf.initiate(np.ones((2, 9)), np.tile(np.eye(9), (2, 1, 1)))
-    assert np.all(np.isfinite(kf.predict(state, np.array([1.0, 2.0])).P))
-    with pytest.raises(np.linalg.LinAlgError):
-        kf.predict(state, np.array([1.0, -1.0]))
+def test_embedded_models_extrapolate_backwards_with_zero_acceleration(model, base):
+    """The m = 3 embedding has a singular F; KalmanFilter's backward prediction (dt < 0) uses the
+    Moore-Penrose inverse, which runs the order-2 model back and keeps the acceleration at zero:
+    position and velocity equal the order-2 model's backward prediction to 1e-12."""
+    rng = np.random.default_rng(4)
+    x3 = rng.normal(0.0, 100.0, (2, 9))
+    back = KalmanFilter(model).predict(KalmanFilter(model).initiate(x3, np.tile(np.eye(9), (2, 1, 1))),
+                                       np.array([-1.0, -3.0]))
+    keep = np.array([0, 1, 3, 4, 6, 7])
+    x2 = x3[:, keep]
+    expected = KalmanFilter(base).predict(KalmanFilter(base).initiate(x2, np.tile(np.eye(6), (2, 1, 1))),
+                                          np.array([-1.0, -3.0]))
+    np.testing.assert_allclose(back.x[:, keep], expected.x, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(back.x[:, [2, 5, 8]], 0.0, atol=1e-9)
 
 
 def test_kalman_filter_on_coordinated_turn_is_consistent():

@@ -204,12 +204,16 @@ class Capabilities:
     a huge measurement noise makes the update a no-op.  ``zero_dt_identity``: predicting by
     0 s returns the state unchanged (false for mixing models whose mixing step is not
     time-homogeneous).  ``estimate``: "gaussian" or "set" (set-membership filters).
+    ``multiple_model``: the estimate is the moment-matched mixture of several models' filters
+    (IMM, static bank), so it is conservative on a path of one model rather than chi-square
+    consistent.
     """
 
     has_covariance: bool = True
     gain_depends_on_r: bool = True
     zero_dt_identity: bool = True
     estimate: str = "gaussian"
+    multiple_model: bool = False
 
 
 class BatchFilter(ABC):

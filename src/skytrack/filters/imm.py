@@ -1,20 +1,28 @@
-"""Interacting multiple model (IMM) filter over Kalman mode filters (spec 004 family).
+"""Interacting multiple model (IMM) filter over Kalman mode filters (spec 004 §3.3 O, R17).
 
 State: a Gaussian mixture per row, ``x[N, M, n]``, ``P[N, M, n, n]``, mode probabilities
-``mu[N, M]`` (:class:`~skytrack.filters.base.MixtureState`).  The mode sequence is a
-continuous-time Markov chain with rate matrix ``Lambda`` (off-diagonal switching rates per
-second), so the transition matrix over a step is ``Pi(dt) = expm(Lambda dt)``: a zero step
-mixes nothing, and steps of any length are consistent.
+``mu[N, M]`` (:class:`~skytrack.filters.base.MixtureState`).  The modes share one state
+space (spec 004 embeds every model in m = 3 states per axis; the tracker's constant-velocity
+and coordinated-turn modes share m = 2).
 
-One cycle (Blom and Bar-Shalom's IMM):
+The mode sequence is a Markov chain with ``pi_ij = P(mode j at k | mode i at k-1)``:
 
-1. mixing: ``c_j = sum_i Pi_ij mu_i``, ``mu_{i|j} = Pi_ij mu_i / c_j``,
-   ``x0_j = sum_i mu_{i|j} x_i``, ``P0_j = sum_i mu_{i|j} (P_i + (x_i - x0_j)(x_i - x0_j)^T)``;
-2. mode-matched prediction of every ``(x0_j, P0_j)`` with mode j's filter, ``mu <- c``;
-3. innovation per mode, likelihood ``L_j = N(nu_j; 0, S_j)``; gating uses the moment-matched
-   estimate's innovation, and the row's log-likelihood is ``ln sum_j mu_j L_j``;
-4. mode-matched updates and ``mu_j <- mu_j L_j / sum_k mu_k L_k``;
-5. output: the moment-matched estimate ``MixtureState.estimate()``.
+* :class:`TransitionMatrix` — a fixed matrix, used for every step whatever its length (the
+  discrete-time IMM of a constant scan period); rows must sum to 1;
+* :class:`SojournTransition` — from mean sojourn times ``tau_j``: ``pi_jj = max(0, 1 - T/tau_j)``,
+  off-diagonal ``(1 - pi_jj) / (M - 1)`` with ``T`` the row's step, so a tracker's uneven
+  revisit intervals get the matching switching probability and a zero step mixes nothing.
+
+One cycle (Blom and Bar-Shalom), split over the protocol's steps:
+
+1. ``predict``: ``c_j = sum_i pi_ij mu_i``, ``mu_{i|j} = pi_ij mu_i / c_j``,
+   ``x0_j = sum_i mu_{i|j} x_i``, ``P0_j = sum_i mu_{i|j} (P_i + (x_i - x0_j)(x_i - x0_j)^T)``,
+   then mode-matched prediction of every ``(x0_j, P0_j)``; the predicted weights are ``c``;
+2. ``innovate``: per-mode innovation and likelihood ``L_j = N(nu_j; 0, S_j)``; gating uses
+   the innovation of the moment-matched prediction (weights ``c``, spread of means included:
+   spec 004 R20), and the row's log-likelihood is ``ln sum_j c_j L_j``;
+3. ``update``: mode-matched updates and ``mu_j = L_j c_j / sum_i L_i c_i`` (log-sum-exp);
+4. output: the moment-matched estimate ``MixtureState.estimate()``.
 
 Mode probabilities after each update go to the recorder channel ``"mode_probabilities"``.
 """
@@ -30,18 +38,85 @@ from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, MixtureState, UpdateStats
 from skytrack.filters.kalman import KalmanFilter
 
+#: tolerance of the row-sum check of a user transition matrix
+ROW_SUM_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class TransitionMatrix:
+    """A fixed Markov matrix ``Pi[M, M]`` used for every step (rows sum to 1, entries >= 0)."""
+
+    matrix: np.ndarray
+
+    def __post_init__(self) -> None:
+        Pi = np.array(self.matrix, dtype=float)
+        if Pi.ndim != 2 or Pi.shape[0] != Pi.shape[1]:
+            raise ValueError(f"transition_matrix must be square, got shape {Pi.shape}")
+        if not np.all(np.isfinite(Pi)) or Pi.min() < 0.0:
+            raise ValueError("transition_matrix entries must be finite and >= 0")
+        sums = Pi.sum(axis=1)
+        bad = np.flatnonzero(np.abs(sums - 1.0) > ROW_SUM_TOLERANCE)
+        if bad.size:
+            raise ValueError(f"transition_matrix is not stochastic: row {bad[0]} sums to {sums[bad[0]]:.12g}, not 1")
+        object.__setattr__(self, "matrix", Pi)
+
+    @property
+    def modes(self) -> int:
+        return len(self.matrix)
+
+    #: a fixed matrix mixes even over a zero step
+    mixes_at_zero_step = True
+
+    def __call__(self, dt: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(self.matrix, (len(dt),) + self.matrix.shape)
+
+
+@dataclass(frozen=True)
+class SojournTransition:
+    """``pi_jj = max(0, 1 - |T| / tau_j)``, off-diagonal ``(1 - pi_jj) / (M - 1)`` per row (spec 004 §3.3 O)."""
+
+    sojourn_s: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        tau = np.array(self.sojourn_s, dtype=float)
+        if tau.ndim != 1 or len(tau) < 2:
+            raise ValueError(f"sojourn_s needs one mean sojourn time per mode (at least two), got {self.sojourn_s}")
+        if not np.all(np.isfinite(tau)) or tau.min() <= 0.0:
+            raise ValueError(f"sojourn_s must be finite and > 0 s, got {self.sojourn_s}")
+        object.__setattr__(self, "sojourn_s", tuple(float(t) for t in tau))
+
+    @property
+    def modes(self) -> int:
+        return len(self.sojourn_s)
+
+    mixes_at_zero_step = False
+
+    def __call__(self, dt: np.ndarray) -> np.ndarray:
+        tau = np.array(self.sojourn_s)
+        M = len(tau)
+        stay = np.maximum(0.0, 1.0 - np.abs(np.asarray(dt, dtype=float))[:, None] / tau[None, :])  # [K, M]
+        Pi = np.repeat(((1.0 - stay) / (M - 1))[:, :, None], M, axis=2)
+        idx = np.arange(M)
+        Pi[:, idx, idx] = stay
+        return Pi
+
+
+def sojourn_matrix(sojourn_s, dt: float) -> np.ndarray:
+    """``Pi`` for one step ``dt`` from mean sojourn times (spec 004 TV19)."""
+    return SojournTransition(tuple(sojourn_s))(np.array([float(dt)]))[0]
+
 
 @dataclass(eq=False)
 class IMMFilter(BatchFilter):
-    """IMM over ``modes`` (Kalman filters on state spaces of one dimension) with switching ``rates``."""
+    """IMM over ``modes`` (Kalman filters on one state space) with a Markov ``transition``."""
 
     modes: list[KalmanFilter]
-    rates: np.ndarray
+    transition: TransitionMatrix | SojournTransition
     initial_probabilities: np.ndarray | None = None
-    _eig: tuple = field(init=False, repr=False)
+    names: tuple[str, ...] | None = None
+    capabilities: Capabilities = field(init=False)
 
     kind = "imm"
-    capabilities = Capabilities()
     state_type = MixtureState
 
     def __post_init__(self) -> None:
@@ -49,20 +124,22 @@ class IMMFilter(BatchFilter):
         if count < 2:
             raise ValueError("an IMM needs at least two modes")
         if len({m.state_dim for m in self.modes}) != 1:
-            raise ValueError("all IMM modes must share one state space")
-        rates = np.array(self.rates, dtype=float)
-        if rates.shape != (count, count) or np.any(rates[~np.eye(count, dtype=bool)] < 0):
-            raise ValueError(f"rates must be a {count}x{count} matrix with non-negative off-diagonal rates")
-        np.fill_diagonal(rates, 0.0)
-        np.fill_diagonal(rates, -rates.sum(axis=1))
-        self.rates = rates
-        values, vectors = np.linalg.eig(rates)
-        self._eig = (values, vectors, np.linalg.inv(vectors))
+            raise ValueError(f"all IMM modes must share one state space, got dimensions {[m.state_dim for m in self.modes]}")
+        if self.transition.modes != count:
+            raise ValueError(f"the transition is for {self.transition.modes} modes, the IMM has {count}")
         if self.initial_probabilities is None:
             self.initial_probabilities = np.full(count, 1.0 / count)
         self.initial_probabilities = np.asarray(self.initial_probabilities, dtype=float)
-        if not np.isclose(self.initial_probabilities.sum(), 1.0):
-            raise ValueError("initial mode probabilities must sum to 1")
+        if self.initial_probabilities.shape != (count,) or self.initial_probabilities.min() < 0 \
+                or not np.isclose(self.initial_probabilities.sum(), 1.0):
+            raise ValueError(f"initial_probabilities must be {count} probabilities summing to 1")
+        if self.names is None:
+            self.names = tuple(f"mode{j}" for j in range(count))
+        if len(self.names) != count:
+            raise ValueError(f"names needs one name per mode ({count}), got {self.names}")
+        # a fixed matrix mixes over a zero step, so a zero-step prediction is not the identity
+        self.capabilities = Capabilities(zero_dt_identity=not self.transition.mixes_at_zero_step,
+                                         multiple_model=True)
 
     @property
     def state_dim(self) -> int:
@@ -72,12 +149,9 @@ class IMMFilter(BatchFilter):
     def n_modes(self) -> int:
         return len(self.modes)
 
-    def transition_matrix(self, dt: np.ndarray) -> np.ndarray:
-        """``Pi(dt) = expm(Lambda |dt|)`` per row, ``[K, M, M]`` (rows i -> columns j)."""
-        values, vectors, inverse = self._eig
-        decay = np.exp(values[None, :] * np.abs(dt)[:, None])
-        Pi = np.einsum("ij,kj,jl->kil", vectors, decay, inverse).real
-        return np.clip(Pi, 0.0, 1.0)
+    def transition_matrix(self, dt) -> np.ndarray:
+        """``Pi`` per row for steps ``dt``, ``[K, M, M]`` (rows i -> columns j)."""
+        return self.transition(np.atleast_1d(np.asarray(dt, dtype=float)))
 
     def initiate(self, x: np.ndarray, P: np.ndarray) -> MixtureState:
         count, M = len(x), self.n_modes
@@ -85,19 +159,27 @@ class IMMFilter(BatchFilter):
         Ps = np.repeat(np.asarray(P, dtype=float)[:, None, :, :], M, axis=1)
         return MixtureState(xs, Ps, np.tile(self.initial_probabilities, (count, 1)))
 
-    def predict(self, state: MixtureState, dt, context: dict | None = None) -> MixtureState:
-        dt = np.broadcast_to(self.transition_dt(dt), (len(state),))
+    def mix(self, state: MixtureState, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Steps 1-2: predicted mode probabilities ``c[K, M]`` and mixed ``x0[K, M, n]``, ``P0[K, M, n, n]``."""
         Pi = self.transition_matrix(dt)
         c = np.einsum("kij,ki->kj", Pi, state.mu)
         weights = Pi * state.mu[:, :, None] / np.maximum(c[:, None, :], 1e-300)  # mu_{i|j}
         x0 = np.einsum("kij,kin->kjn", weights, state.x)
         d = state.x[:, :, None, :] - x0[:, None, :, :]  # [K, i, j, n]
         P0 = np.einsum("kij,kijab->kjab", weights, state.P[:, :, None] + d[..., :, None] * d[..., None, :])
+        if linalg.is_counting():
+            K, M, n = state.x.shape
+            linalg.count("imm_mix", K * (M * M + M * M * n + M * M * (n * n + n * n)))
+        return c / c.sum(axis=1, keepdims=True), x0, linalg.symmetrize(P0)
+
+    def predict(self, state: MixtureState, dt, context: dict | None = None) -> MixtureState:
+        dt = np.broadcast_to(self.transition_dt(dt), (len(state),))
+        c, x0, P0 = self.mix(state, dt)
         xs, Ps = np.empty_like(x0), np.empty_like(P0)
         for j, mode in enumerate(self.modes):
             predicted = mode.predict(GaussianState(x0[:, j], P0[:, j]), dt, context)
             xs[:, j], Ps[:, j] = predicted.x, predicted.P
-        return MixtureState(xs, Ps, c / c.sum(axis=1, keepdims=True))
+        return MixtureState(xs, Ps, c)
 
     def innovate(self, state: MixtureState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
         per_mode = [mode.innovate(GaussianState(state.x[:, j], state.P[:, j]), z, model, context)
@@ -117,7 +199,14 @@ class IMMFilter(BatchFilter):
             inn = innovation.extra["modes"][j]
             updated, _ = mode.update(inn.predicted, z, inn)
             xs[:, j], Ps[:, j] = updated.x, updated.P
-        log_mu = np.log(np.maximum(predicted.mu, 1e-300)) + innovation.extra["mode_loglik"]
-        mu = np.exp(log_mu - logsumexp(log_mu, axis=1, keepdims=True))
-        self.recorder.record("mode_probabilities", np.arange(len(mu)), mu=mu)
+        mu = posterior_probabilities(predicted.mu, innovation.extra["mode_loglik"])
+        if self.recorder.active:
+            self.recorder.record("mode_probabilities", np.arange(len(mu)), mu=mu)
         return MixtureState(xs, linalg.symmetrize(Ps), mu), UpdateStats(innovation.d2 / innovation.m)
+
+
+def posterior_probabilities(prior: np.ndarray, loglik: np.ndarray) -> np.ndarray:
+    """``mu_j = L_j c_j / sum_i L_i c_i`` over the last axis, in the log domain (no underflow)."""
+    with np.errstate(divide="ignore"):
+        log_mu = np.log(prior) + loglik
+    return np.exp(log_mu - logsumexp(log_mu, axis=-1, keepdims=True))

@@ -3,7 +3,10 @@
 * predict — spec 000 Theorem 2 / (5): ``x' = F x``, ``P' = F P F^T + s Q`` with the
   transition model's ``F(|dt|)``, ``Q(|dt|)`` and a per-row process-noise factor ``s``
   (``context["q_scale"]``, used by the manoeuvre switch).  A negative ``dt`` (sectors of
-  merged sensors overlap) extrapolates backwards with ``F(|dt|)^-1``.
+  merged sensors overlap) extrapolates backwards with the Moore-Penrose inverse of
+  ``F(|dt|)``: the inverse for every nonsingular transition, and for the singular m = 3
+  embedding of CV and CT (spec 004, zero acceleration rows) the embedded model run back
+  with the acceleration kept at zero.
 * innovate — ``nu = z - h(x)`` (the measurement model forms it), ``S = H P H^T + R``,
   Cholesky factor, ``d^2 = nu^T S^-1 nu`` (spec 000 R7), ``ln det S`` and the Gaussian
   log-likelihood.
@@ -74,7 +77,7 @@ class KalmanFilter(BatchFilter):
             Fa = model.axes[0].F_batch(step)
             Qa = model.axes[0].Q_batch(step)
             if backwards.any():
-                Fa[backwards] = np.linalg.inv(Fa[backwards])
+                Fa[backwards] = np.linalg.pinv(Fa[backwards])
             x_new, P_new = kernels.predict_blocks(x, P, Fa, Qa, scale)
             if linalg.is_counting():
                 o, axes = Fa.shape[-1], model.ndim
@@ -83,32 +86,12 @@ class KalmanFilter(BatchFilter):
         F = model.F_batch(step)
         Q = model.Q_batch(step) * scale[:, None, None]
         if backwards.any():
-            F[backwards] = np.linalg.inv(F[backwards])
+            F[backwards] = np.linalg.pinv(F[backwards])
         return GaussianState(linalg.matvec(F, x), linalg.sandwich(F, P, Q))
 
     # -------------------------------------------------------------------- innovate
     def innovate(self, state: GaussianState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
-        context = context or {}
-        h, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h, context)
-        m = model.measured(context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
-        if self.compiled:
-            S, L, d2, logdet, ok = kernels.innovate_dense(state.P, np.ascontiguousarray(H), R, nu)
-            if not ok.all():
-                raise ValueError("innovation covariance is not positive definite")
-            if linalg.is_counting():
-                rows, mm, n = H.shape
-                linalg.count("innovate_dense", rows * (mm * n * n + mm * mm * n + linalg.cholesky_cost(mm) + mm * mm + mm))
-        else:
-            S = linalg.sandwich(H, state.P, R)
-            L = linalg.cholesky(S)
-            d2 = linalg.mahalanobis_chol(nu, L)
-            logdet = linalg.logdet_chol(L)
-        loglik = linalg.gaussian_loglik(d2, logdet, m)
-        return Innovation(nu, S, L, d2, logdet, loglik, m, H, R, state)
+        return innovate_gaussian(state, z, model, context, self.compiled)
 
     # -------------------------------------------------------------------- update
     def update(self, state: GaussianState, z: np.ndarray, innovation: Innovation) -> tuple[GaussianState, UpdateStats]:
@@ -131,6 +114,33 @@ class KalmanFilter(BatchFilter):
                 P_new = linalg.symmetrize(P - linalg.matmul(linalg.matmul(K, innovation.S), np.swapaxes(K, -1, -2)))
             self.recorder.record("gain", np.arange(len(x)), gain=K)
         return GaussianState(x_new, P_new), UpdateStats(innovation.d2 / innovation.m)
+
+
+def innovate_gaussian(state: GaussianState, z: np.ndarray, model, context: dict | None = None,
+                      compiled: bool = True) -> Innovation:
+    """Innovation of ``z`` against Gaussian estimates ``state`` through measurement ``model``
+    (the Kalman filter's innovate; mixtures and banks use it for their moment-matched estimate)."""
+    context = context or {}
+    h, H = model.evaluate(state.x, context)
+    R = model.noise(context)
+    nu = model.residual(np.asarray(z, dtype=float), h, context)
+    m = model.measured(context)
+    if not np.all(np.isfinite(nu)):
+        raise ValueError("non-finite measurement or innovation")
+    if compiled:
+        S, L, d2, logdet, ok = kernels.innovate_dense(state.P, np.ascontiguousarray(H), R, nu)
+        if not ok.all():
+            raise ValueError("innovation covariance is not positive definite")
+        if linalg.is_counting():
+            rows, mm, n = H.shape
+            linalg.count("innovate_dense", rows * (mm * n * n + mm * mm * n + linalg.cholesky_cost(mm) + mm * mm + mm))
+    else:
+        S = linalg.sandwich(H, state.P, R)
+        L = linalg.cholesky(S)
+        d2 = linalg.mahalanobis_chol(nu, L)
+        logdet = linalg.logdet_chol(L)
+    loglik = linalg.gaussian_loglik(d2, logdet, m)
+    return Innovation(nu, S, L, d2, logdet, loglik, m, H, R, state)
 
 
 def _row_scale(context: dict | None, rows: int) -> np.ndarray:

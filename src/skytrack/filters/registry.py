@@ -16,12 +16,10 @@ import importlib
 import pkgutil
 from collections.abc import Callable
 
-import numpy as np
 
 import skytrack.filters
 
 from skytrack.filters.base import BatchFilter
-from skytrack.filters.imm import IMMFilter
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.maneuver import ManoeuvreSwitchFilter
 from skytrack.models.motion import MotionModel
@@ -59,20 +57,6 @@ def _kalman(motion: MotionModel, form: str = "joseph", compiled: bool = True) ->
 def _kalman_psi(motion: MotionModel, scale: float = 3000.0, on: float = 3.0, off: float = 1.2,
                 memory: float = 0.5, compiled: bool = True) -> ManoeuvreSwitchFilter:
     return ManoeuvreSwitchFilter(KalmanFilter(motion, compiled=compiled), scale, on, off, memory)
-
-
-@register_filter("imm")
-def _imm(motion: MotionModel, q_scales: tuple[float, ...] = (1.0, 3000.0), mean_sojourn_s: tuple[float, ...] = (60.0, 15.0),
-         compiled: bool = True) -> IMMFilter:
-    """IMM whose modes are the motion model with its process noise times each of ``q_scales``;
-    mode i is left at rate ``1 / mean_sojourn_s[i]``, evenly to the other modes."""
-    if len(q_scales) != len(mean_sojourn_s) or len(q_scales) < 2:
-        raise ValueError("q_scales and mean_sojourn_s need one entry per mode (at least two)")
-    modes = [KalmanFilter(motion.scaled(scale), compiled=compiled) for scale in q_scales]
-    count = len(modes)
-    rates = np.array([[0.0 if i == j else 1.0 / (mean_sojourn_s[i] * (count - 1)) for j in range(count)]
-                      for i in range(count)])
-    return IMMFilter(modes, rates)
 
 
 def _discover_families() -> None:

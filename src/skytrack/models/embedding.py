@@ -5,7 +5,8 @@ The multiple-model filters of spec 004 (model bank, IMM, VD) hold every model in
 and Q fill the leading block of each axis and the added rows and columns are zero, e.g. CV:
 ``F_cv = [[1, T, 0], [0, 1, 0], [0, 0, 0]]``, DWNA ``g = [T^2/2, T, 0]``.  The acceleration of
 an embedded CV model is therefore reset to zero at every prediction (and its F is singular:
-no backward extrapolation, and ``F(0) = diag(1, 1, 0)``, not the identity).
+backward extrapolation through its Moore-Penrose inverse keeps the acceleration at zero, and
+``F(0) = diag(1, 1, 0)``, not the identity).
 
 :func:`embed` maps a :class:`~skytrack.models.motion.MotionModel` axis by axis
 (:class:`EmbeddedAxis`), returns models that already have the order unchanged (CA, Singer,

@@ -20,7 +20,8 @@ Two layouts (axis-major, spec 004 §2):
   ``Q3 = J Q2 J^T`` with ``S`` dropping the old accelerations.  z acceleration is zero.
 
 The order-3 F is singular (zero or dependent acceleration rows), so a filter cannot invert it
-to extrapolate backwards (``KalmanFilter`` with ``dt < 0`` raises ``numpy.linalg.LinAlgError``);
+to extrapolate backwards (``KalmanFilter`` with ``dt < 0`` uses its Moore-Penrose inverse: the
+order-2 model run back, accelerations kept at zero);
 ``F(0)`` is the identity only for ``order=2``.
 
 :class:`CoordinatedTurn` has the attributes and methods filters take from
