@@ -1,0 +1,327 @@
+"""Adaptive Kalman filter with real-time estimates of the noise covariances (spec 004 §3.3 F, R8;
+the paper's item 4a).
+
+Three variants on top of the Kalman filter of §3.3 A (the composed
+:class:`~skytrack.filters.kalman.KalmanFilter`), with the fading weight
+``d = (1 - b) / (1 - b^(k'+1))``, k' = adaptation steps done so far (:func:`fading_weight`):
+
+* ``"structured"`` (default): diagonal ``R̂`` and ``Q̂ = q̂ Q_unit``.  On an adaptation scan
+  ``r̂_i <- clip((1-d) r̂_i + d (nu_i^2 - (H P^- H^T)_ii), r_lo R_nom,ii, r_hi R_nom,ii)``, the update
+  uses the new ``R̂``, then with ``M_Q = K nu nu^T K^T + P_k - F P_{k-1} F^T``
+  ``q̂ <- clip((1-d) q̂ + d <M_Q, Q_unit>_F / <Q_unit, Q_unit>_F, q_lo, q_hi)``.
+* ``"sage_husa_full"``: the textbook Sage-Husa filter with fading memory, full matrices:
+  ``R̂ <- (1-d) R̂ + d (nu nu^T - H P^- H^T)``, then the update with it, then
+  ``Q̂ <- (1-d) Q̂ + d M_Q``; both symmetrised and projected on the PSD cone (eigenvalues of R̂ at
+  least ``r_floor`` times the smallest diagonal entry of R_nom, of Q̂ at least 0).  No limits and,
+  by default, no NIS gate: the unguarded form, known to be able to diverge.
+* ``"covariance_matching"`` (innovation-based, Mehra 1972): the innovations of the adaptation
+  scans fill a window of ``window`` (M) scans; once full, on every adaptation scan
+  ``C = mean of nu nu^T`` over it, ``R̂ = C - H P^- H^T`` (PSD-projected, floored as above), the
+  update with it, and ``Q̂ = K C K^T`` (Mohamed-Schwarz).
+
+Adaptation scans: a row adapts once it has had ``warmup`` updates (default 10) and, when the gate
+is on, only if its NIS ``eps = nu^T S^-1 nu`` with the current R̂ and Q̂ is at most
+``chi2_{n_z}^-1(gate_probability)`` (0.99), so that manoeuvre innovations are not absorbed.  The
+gate is on by default for ``structured`` and ``covariance_matching``, off for ``sage_husa_full``.
+``fixed_weight`` replaces d by a constant (TV16 forces d = 0.5).
+
+Measurement noise: the filter uses ``R̂`` instead of the measurement model's R.  A row's ``R̂_0``
+is ``r0_scale`` times the model's R (``context["R"]``) at the row's first update (its diagonal for
+``structured``); that ``R̂_0`` is also R_nom, the reference of the limits.  After the first update
+the model's R is not used, so rows may start from different R but a change of the sensor's R later
+reaches the filter only through the estimate (the capability ``gain_depends_on_r`` is False).  The
+measurement must have one component per axis (the converted positions).
+
+Process noise: ``Q_unit`` is the motion model's Q, ``q̂_0 = q0`` (default 1: the model as given;
+spec 004 §6 starts its study at 25 with the sigma_w = 1 model).  The full-matrix variants estimate
+the process noise of one scan: ``Q̂_0 = q0 Q(period)`` (``period`` default 1 s) and every step of
+nonzero length adds ``Q̂`` whatever its length, so they assume the constant sampling period of the
+spec's studies.  ``F P_{k-1} F^T`` is ``P^- - Q_acc`` with ``Q_acc`` the process noise added since the
+last update (kept in the state, so several predictions before one update are exact).
+``context["q_scale"]`` multiplies the process noise on top.
+
+Recorder channels: ``"adaptive"`` after every update (rows, ``R_hat``, ``q_hat`` or ``Q_hat``,
+``adapted``, ``weight`` d, ``nis``) — the histories of study E6 — and the Kalman filter's ``"gain"``.
+Eigendecompositions (PSD projections) are counted as ``9 n^3 / 2`` multiply-adds (R22 has no rule
+for them; half of Golub and Van Loan's ~9 n^3 flops for eigenvalues and vectors).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from skytrack.core import linalg
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.kalman import KalmanFilter
+from skytrack.filters.per_axis import RecorderSharing, row_scale
+from skytrack.filters.registry import register_filter
+from skytrack.models.motion import MotionModel
+
+VARIANTS = ("structured", "sage_husa_full", "covariance_matching")
+
+
+def fading_weight(b: float, adaptations) -> np.ndarray:
+    """Sage-Husa weight ``d = (1 - b) / (1 - b^(k'+1))`` after ``k'`` adaptation steps (1 at k' = 0, -> 1 - b)."""
+    return (1.0 - b) / (1.0 - b ** (np.asarray(adaptations, dtype=float) + 1.0))
+
+
+def psd_project(M: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Symmetric part of ``M`` with its eigenvalues raised to at least ``floor`` (per row)."""
+    w, U = np.linalg.eigh(linalg.symmetrize(M))
+    if linalg.is_counting():
+        linalg.count("eigh", len(M) * 4.5 * M.shape[-1] ** 3)
+    w = np.maximum(w, np.asarray(floor, dtype=float).reshape(-1, 1))
+    return linalg.symmetrize(linalg.matmul(U * w[:, None, :], np.swapaxes(U, -1, -2)))
+
+
+def _diag_matrix(values: np.ndarray) -> np.ndarray:
+    out = np.zeros(values.shape + values.shape[-1:])
+    index = np.arange(values.shape[-1])
+    out[..., index, index] = values
+    return out
+
+
+@dataclass
+class AdaptiveState(GaussianState):
+    """Gaussian state plus R̂ and R_nom ``[N, m, m]``, the process noise added since the last update
+    ``Q_acc[N, n, n]``, the number of updates and of adaptation steps per row."""
+
+    R_hat: np.ndarray
+    R_nom: np.ndarray
+    Q_acc: np.ndarray
+    scans: np.ndarray
+    adaptations: np.ndarray
+
+
+@dataclass
+class StructuredAdaptiveState(AdaptiveState):
+    """Plus the process-noise factor ``q_hat[N]`` (Q̂ = q̂ Q_unit)."""
+
+    q_hat: np.ndarray
+
+
+@dataclass
+class SageHusaState(AdaptiveState):
+    """Plus the full process-noise estimate ``Q_hat[N, n, n]`` of one scan."""
+
+    Q_hat: np.ndarray
+
+
+@dataclass
+class CovarianceMatchingState(SageHusaState):
+    """Plus the innovation window ``innovations[N, M, m]`` and how many innovations were stored."""
+
+    innovations: np.ndarray
+    stored: np.ndarray
+
+
+@dataclass(frozen=True)
+class _EstimatedNoise:
+    """A measurement model whose noise is the filter's R̂ (everything else is the wrapped model's)."""
+
+    model: object
+    R: np.ndarray
+
+    def evaluate(self, x, context):
+        return self.model.evaluate(x, context)
+
+    def noise(self, context):
+        return self.R
+
+    def residual(self, z, h, context):
+        return self.model.residual(z, h, context)
+
+    def measured(self, context):
+        return self.model.measured(context)
+
+
+@dataclass(eq=False)
+class AdaptiveKalmanFilter(RecorderSharing, BatchFilter):
+    """Kalman filter with real-time R̂, Q̂ estimation (§3.3 F), variant ``structured`` by default."""
+
+    transition: MotionModel
+    variant: str = "structured"
+    b: float = 0.97
+    warmup: int = 10
+    gate: bool | None = None
+    gate_probability: float = 0.99
+    r_lo: float = 0.1
+    r_hi: float = 10.0
+    q_lo: float = 0.01
+    q_hi: float = 2500.0
+    r_floor: float = 1e-3
+    q0: float = 1.0
+    r0_scale: float = 1.0
+    window: int = 20
+    period: float = 1.0
+    fixed_weight: float | None = None
+    compiled: bool = True
+    kalman: KalmanFilter = field(init=False, repr=False)
+
+    kind = "kalman-adaptive"
+    capabilities = Capabilities(gain_depends_on_r=False)
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ValueError(f"adaptive KF: variant must be one of {VARIANTS}, got {self.variant!r}")
+        if not 0.0 < self.b < 1.0:
+            raise ValueError(f"adaptive KF: b must be in (0, 1), got {self.b!r}")
+        if not (isinstance(self.warmup, (int, np.integer)) and self.warmup >= 0):
+            raise ValueError(f"adaptive KF: warmup must be an integer >= 0, got {self.warmup!r}")
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= 1):
+            raise ValueError(f"adaptive KF: window must be an integer >= 1, got {self.window!r}")
+        if not 0.0 < self.gate_probability < 1.0:
+            raise ValueError(f"adaptive KF: gate_probability must be in (0, 1), got {self.gate_probability!r}")
+        if not 0.0 < self.r_lo <= self.r_hi < np.inf:
+            raise ValueError(f"adaptive KF: need 0 < r_lo <= r_hi < inf, got r_lo={self.r_lo!r}, r_hi={self.r_hi!r}")
+        if not 0.0 < self.q_lo <= self.q_hi < np.inf:
+            raise ValueError(f"adaptive KF: need 0 < q_lo <= q_hi < inf, got q_lo={self.q_lo!r}, q_hi={self.q_hi!r}")
+        for name in ("r_floor", "q0", "r0_scale", "period"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"adaptive KF: {name} must be finite and > 0, got {value!r}")
+        if self.fixed_weight is not None and not 0.0 < self.fixed_weight <= 1.0:
+            raise ValueError(f"adaptive KF: fixed_weight must be in (0, 1], got {self.fixed_weight!r}")
+        if self.gate is None:
+            self.gate = self.variant != "sage_husa_full"
+        self.kalman = KalmanFilter(self.transition, compiled=self.compiled)
+        self.state_type = {"structured": StructuredAdaptiveState, "sage_husa_full": SageHusaState,
+                           "covariance_matching": CovarianceMatchingState}[self.variant]
+
+    @property
+    def state_dim(self) -> int:
+        return self.transition.dim
+
+    def initiate(self, x: np.ndarray, P: np.ndarray) -> AdaptiveState:
+        x, P = np.array(x, dtype=float), np.array(P, dtype=float)
+        rows, n = x.shape
+        mz = self.transition.ndim
+        common = (x, P, np.zeros((rows, mz, mz)), np.zeros((rows, mz, mz)), np.zeros((rows, n, n)),
+                  np.zeros(rows, np.int64), np.zeros(rows, np.int64))
+        if self.variant == "structured":
+            return StructuredAdaptiveState(*common, np.full(rows, self.q0))
+        Q_hat = np.broadcast_to(self.q0 * self.transition.Q(self.period), (rows, n, n)).copy()
+        if self.variant == "sage_husa_full":
+            return SageHusaState(*common, Q_hat)
+        return CovarianceMatchingState(*common, Q_hat, np.zeros((rows, self.window, mz)), np.zeros(rows, np.int64))
+
+    # -------------------------------------------------------------------- predict
+    def predict(self, state: AdaptiveState, dt, context: dict | None = None) -> AdaptiveState:
+        rows = len(state)
+        dt = np.broadcast_to(self.transition_dt(dt), (rows,))
+        scale = row_scale(context, rows)
+        if self.variant == "structured":
+            factor = state.q_hat * scale
+            g = self.kalman.predict_arrays(state.x, state.P, dt, factor)
+            Q_step = self.transition.Q_batch(np.abs(dt)) * factor[:, None, None]
+            P = g.P
+        else:
+            g = self.kalman.predict_arrays(state.x, state.P, dt, np.zeros(rows))
+            Q_step = np.where((dt != 0.0)[:, None, None], state.Q_hat * scale[:, None, None], 0.0)
+            P = g.P + Q_step
+        Q_acc = Q_step
+        carried = np.any(state.Q_acc != 0.0, axis=(1, 2))
+        if carried.any():  # several predictions before one update: the earlier noise is propagated too
+            Q_acc = Q_step.copy()
+            Q_acc[carried] += self.kalman.predict_arrays(state.x[carried], state.Q_acc[carried], dt[carried],
+                                                         np.zeros(int(carried.sum()))).P
+        new = state.copy()
+        new.x, new.P, new.Q_acc = g.x, P, Q_acc
+        return new
+
+    # -------------------------------------------------------------------- innovate
+    def innovate(self, state: AdaptiveState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
+        R_model = np.asarray(model.noise(context or {}), dtype=float)
+        if R_model.shape[-1] != state.R_hat.shape[-1]:
+            raise ValueError(f"adaptive KF: the measurement must have one component per axis "
+                             f"({state.R_hat.shape[-1]}), got {R_model.shape[-1]}")
+        R_start = self.r0_scale * R_model
+        if self.variant == "structured":
+            R_start = _diag_matrix(np.diagonal(R_start, axis1=-2, axis2=-1))
+        R_use = np.where((state.scans == 0)[:, None, None], R_start, state.R_hat)
+        return self.kalman.innovate(state, z, _EstimatedNoise(model, R_use), context)
+
+    # -------------------------------------------------------------------- update
+    def update(self, state: AdaptiveState, z: np.ndarray, innovation: Innovation) -> tuple[AdaptiveState, UpdateStats]:
+        pred: AdaptiveState = innovation.predicted
+        rows = len(pred)
+        nu, R_prev, m = innovation.nu, innovation.R, innovation.m
+        HPH = innovation.S - R_prev
+        R_nom = np.where((pred.scans == 0)[:, None, None], R_prev, pred.R_nom)
+        adapt = pred.scans >= self.warmup
+        if self.gate:
+            adapt &= innovation.d2 <= stats.chi2.ppf(self.gate_probability, m)
+        d = np.full(rows, float(self.fixed_weight)) if self.fixed_weight is not None else fading_weight(self.b, pred.adaptations)
+        new = pred.copy()
+        nunu = nu[:, :, None] * nu[:, None, :]
+        if linalg.is_counting():
+            linalg.count("innovation_outer", rows * nu.shape[-1] ** 2)
+        floor = self.r_floor * np.min(np.diagonal(R_nom, axis1=-2, axis2=-1), axis=-1)
+        estimated = adapt
+        if self.variant == "structured":
+            r = (1.0 - d[:, None]) * np.diagonal(R_prev, axis1=-2, axis2=-1) + d[:, None] * np.diagonal(nunu - HPH, axis1=-2, axis2=-1)
+            nominal = np.diagonal(R_nom, axis1=-2, axis2=-1)
+            R_new = _diag_matrix(np.clip(r, self.r_lo * nominal, self.r_hi * nominal))
+        elif self.variant == "sage_husa_full":
+            R_new = psd_project((1.0 - d[:, None, None]) * R_prev + d[:, None, None] * (nunu - HPH), floor)
+        else:
+            slot = pred.stored % self.window
+            new.innovations = pred.innovations.copy()
+            new.innovations[adapt, slot[adapt]] = nu[adapt]
+            new.stored = pred.stored + adapt
+            estimated = adapt & (new.stored >= self.window)
+            C_hat = np.einsum("kwi,kwj->kij", new.innovations, new.innovations) / self.window
+            if linalg.is_counting():
+                linalg.count("window_covariance", rows * self.window * nu.shape[-1] ** 2)
+            R_new = psd_project(C_hat - HPH, floor)
+        R_k = np.where(estimated[:, None, None], R_new, R_prev)
+        corrected = innovation
+        if estimated.any():
+            # rows that did not re-estimate R keep their innovation exactly
+            S = np.where(estimated[:, None, None], HPH + R_k, innovation.S)
+            chol = np.where(estimated[:, None, None], linalg.cholesky(S), innovation.chol)
+            logdet = np.where(estimated, linalg.logdet_chol(chol), innovation.logdet)
+            corrected = Innovation(nu, S, chol, innovation.d2, logdet, innovation.loglik, m, innovation.H, R_k, pred)
+        updated, _ = self.kalman.update(pred, z, corrected)
+        if self.variant == "covariance_matching":
+            if estimated.any():
+                H, P = corrected.H[estimated], pred.P[estimated]
+                PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
+                K = np.swapaxes(linalg.cho_solve(corrected.chol[estimated], np.swapaxes(PHt, -1, -2)), -1, -2)
+                new.Q_hat = pred.Q_hat.copy()
+                new.Q_hat[estimated] = linalg.sandwich(K, C_hat[estimated])
+        else:
+            gain_nu = updated.x - pred.x
+            M_Q = gain_nu[:, :, None] * gain_nu[:, None, :] + updated.P - (pred.P - pred.Q_acc)
+            if linalg.is_counting():
+                linalg.count("process_noise_sample", rows * gain_nu.shape[-1] ** 2)
+            if self.variant == "structured":
+                unit = pred.Q_acc / pred.q_hat[:, None, None]
+                norm = np.sum(unit * unit, axis=(1, 2))
+                estimated = adapt & (norm > 0.0)
+                projection = np.sum(M_Q * unit, axis=(1, 2)) / np.where(norm > 0.0, norm, 1.0)
+                if linalg.is_counting():
+                    linalg.count("frobenius_projection", rows * 2 * gain_nu.shape[-1] ** 2)
+                q = np.clip((1.0 - d) * pred.q_hat + d * projection, self.q_lo, self.q_hi)
+                new.q_hat = np.where(estimated, q, pred.q_hat)
+            else:
+                Q_new = psd_project((1.0 - d[:, None, None]) * pred.Q_hat + d[:, None, None] * M_Q, np.zeros(rows))
+                new.Q_hat = np.where(adapt[:, None, None], Q_new, pred.Q_hat)
+        new.x, new.P, new.R_hat, new.R_nom = updated.x, updated.P, R_k, R_nom
+        new.Q_acc = np.zeros_like(pred.Q_acc)
+        new.scans = pred.scans + 1
+        new.adaptations = pred.adaptations + (adapt if self.variant != "covariance_matching" else estimated)
+        if self.recorder.active:
+            noise = {"q_hat": new.q_hat} if self.variant == "structured" else {"Q_hat": new.Q_hat}
+            self.recorder.record("adaptive", np.arange(rows), R_hat=R_k, adapted=adapt, weight=d,
+                                 nis=innovation.d2, **noise)
+        return new, UpdateStats(innovation.d2 / m)
+
+
+@register_filter("kalman-adaptive")
+def _adaptive(motion: MotionModel, compiled: bool = True, **options) -> AdaptiveKalmanFilter:
+    """Adaptive KF (§3.3 F); options as :class:`AdaptiveKalmanFilter` (variant, b, warmup, limits, ...)."""
+    return AdaptiveKalmanFilter(motion, compiled=compiled, **options)
