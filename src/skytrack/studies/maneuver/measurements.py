@@ -1,0 +1,106 @@
+"""Monte Carlo measurements of the studies (spec 004 §6 common defaults, R21).
+
+Runs are the batch dimension.  Run r draws its noise from its own generator
+``numpy.random.default_rng(SeedSequence(seed).spawn(runs)[r])`` (R21), so a run's
+measurements depend neither on the number of runs nor on the batching; every filter of a
+study sees the same measurements (common random numbers).
+
+Two measurement modes:
+
+* ``polar`` (default) — the 3-D radar of the case measures range, azimuth and elevation of the
+  truth with independent Gaussian errors (sigma_r, sigma_az, sigma_el); each plot is converted
+  to Cartesian with the linearised covariance ``J diag(sigma^2) J^T`` of
+  :func:`skytrack.models.conversion.convert_plots`, evaluated at the measured plot (so R
+  varies from run to run: spec 004 §3.5 item 8);
+* ``cartesian`` — ``z = p + v`` with ``v ~ N(0, sigma^2 I)``: a fixed R, identical across runs
+  (E2, E9).
+
+Arrays are scan-major: ``z[K, runs, 3]``, ``R[K, runs, 3, 3]``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from skytrack.geo.polar import cartesian_to_polar
+from skytrack.geo.sensors import Sensor
+from skytrack.models.conversion import convert_plots
+from skytrack.studies.maneuver.scenarios import Case, SensorSpec
+
+MODES = ("polar", "cartesian")
+
+
+@dataclass(frozen=True)
+class MeasurementSet:
+    """Measurements of one case: ``z[K, runs, 3]`` (ENU m) and ``R[K, runs, 3, 3]``."""
+
+    z: np.ndarray
+    R: np.ndarray
+    mode: str
+    seed: int
+
+    @property
+    def runs(self) -> int:
+        return self.z.shape[1]
+
+    @property
+    def scans(self) -> int:
+        return self.z.shape[0]
+
+
+def run_generators(seed: int, runs: int) -> list[np.random.Generator]:
+    """Generator of run r: ``default_rng(SeedSequence(seed).spawn(runs)[r])`` (R21)."""
+    if int(runs) != runs or runs < 1:
+        raise ValueError(f"--runs must be a positive integer, got {runs}")
+    if int(seed) != seed or seed < 0:
+        raise ValueError(f"--seed must be a non-negative integer, got {seed}")
+    return [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(int(runs))]
+
+
+def standard_noise(seed: int, runs: int, scans: int) -> np.ndarray:
+    """Standard normal draws ``[K, runs, 3]``; run r's column comes from run r's generator only."""
+    noise = np.empty((scans, runs, 3))
+    for r, rng in enumerate(run_generators(seed, runs)):
+        noise[:, r, :] = rng.standard_normal((scans, 3))
+    return noise
+
+
+def radar_sensor(spec: SensorSpec) -> Sensor:
+    """The :class:`~skytrack.geo.sensors.Sensor` (3-D radar, north = +y) of a study sensor."""
+    sensor = Sensor(name="study-radar", type="radar-3d", sigma_range_m=spec.sigma_range_m,
+                    sigma_azimuth_deg=math.degrees(spec.sigma_azimuth_rad),
+                    sigma_elevation_deg=math.degrees(spec.sigma_elevation_rad))
+    sensor.position = np.asarray(spec.position, dtype=float)
+    return sensor
+
+
+def polar_measurements(position: np.ndarray, sensor: SensorSpec, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Converted plots ``z[K, runs, 3]`` and covariances for truth ``position[K, 3]`` and ``noise[K, runs, 3]``."""
+    scans, runs, _ = noise.shape
+    rel = np.asarray(position, dtype=float) - np.asarray(sensor.position, dtype=float)
+    r, az, el = cartesian_to_polar(rel[:, 0], rel[:, 1], rel[:, 2])
+    sig = np.array([sensor.sigma_range_m, sensor.sigma_azimuth_rad, sensor.sigma_elevation_rad])
+    measured = np.stack([r, az, el], axis=-1)[:, None, :] + noise * sig
+    flat = measured.reshape(-1, 3)
+    nan = np.full(len(flat), np.nan)
+    plots = convert_plots(radar_sensor(sensor), flat[:, 0], flat[:, 1], flat[:, 2], nan, nan, np.full((len(flat), 6), np.nan))
+    return plots.position.reshape(scans, runs, 3), plots.covariance.reshape(scans, runs, 3, 3)
+
+
+def simulate_measurements(case: Case, runs: int, seed: int, mode: str = "polar",
+                          cartesian_sigma_m: float | None = None) -> MeasurementSet:
+    """Measurements of ``case`` for ``runs`` Monte Carlo runs (module docstring)."""
+    if mode not in MODES:
+        raise ValueError(f"measurement mode must be one of {MODES}, got {mode!r}")
+    noise = standard_noise(seed, runs, case.scans)
+    if mode == "polar":
+        z, R = polar_measurements(case.truth.position, case.sensor, noise)
+    else:
+        if cartesian_sigma_m is None or not (math.isfinite(cartesian_sigma_m) and cartesian_sigma_m > 0):
+            raise ValueError(f"cartesian measurements need sigma > 0, got {cartesian_sigma_m}")
+        z = case.truth.position[:, None, :] + cartesian_sigma_m * noise
+        R = np.broadcast_to(cartesian_sigma_m**2 * np.eye(3), (case.scans, runs, 3, 3)).copy()
+    return MeasurementSet(z, R, mode, int(seed))

@@ -1,0 +1,23 @@
+"""Names of the spec 004 §6 studies and the modules that define them (light: no heavy imports).
+
+The CLI registers ``skytrack study <name>`` for every entry; each module holds
+``STUDY = StudyDefinition(...)`` (:mod:`skytrack.studies.maneuver.study`).  A new study is one
+module plus one line here.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+#: study name -> (module, one-line help)
+STUDY_MODULES: dict[str, tuple[str, str]] = {
+    "kf-gains": ("skytrack.studies.maneuver.kf_gains",
+                 "E2 (P2, P3): KF gain histories, alpha-beta-gamma = steady-state KF, KF-CV error in a turn"),
+}
+
+
+def load_study(name: str):
+    """The :class:`~skytrack.studies.maneuver.study.StudyDefinition` of a study name."""
+    if name not in STUDY_MODULES:
+        raise ValueError(f"unknown study {name!r}; studies: {', '.join(sorted(STUDY_MODULES))}")
+    return importlib.import_module(STUDY_MODULES[name][0]).STUDY
