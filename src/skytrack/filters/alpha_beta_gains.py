@@ -34,9 +34,11 @@ KALATA_ROOT_TOL = 1e-14
 
 
 def _out(value: np.ndarray):
-    """A float for 0-d results, the array otherwise."""
+    """A Python scalar (bool or float) for 0-d results, the array otherwise."""
     value = np.asarray(value)
-    return float(value) if value.ndim == 0 else value
+    if value.ndim:
+        return value
+    return bool(value) if value.dtype == bool else float(value)
 
 
 def _check_order(order: int) -> int:
