@@ -33,7 +33,7 @@ Acceleration in CV mode.  The embedded CV model leaves the acceleration entries 
 zero covariance, which would make the reported covariance singular.  skytrack reports, in CV
 mode, the acceleration the DWNA model assumes for the coming interval: zero mean, variance
 ``sigma_cv^2`` per axis, uncorrelated with position and velocity.  It is the quiescent Q's
-acceleration diagonal (:func:`embedded_axis_models`); F_cv's zero acceleration column keeps it
+acceleration diagonal; F_cv's zero acceleration column keeps it
 out of every position/velocity number, which are exactly those of the spec's CV filter.
 
 Measurements: positions only (``H`` selects the positions; e.g.
@@ -81,9 +81,9 @@ def return_threshold(n_a: int, window: int) -> float:
 def embedded_axis_models(dt: np.ndarray, sigma_cv: float, sigma_ca: float) -> dict[str, np.ndarray]:
     """Per-axis m = 3 matrices ``[K, 3, 3]`` of the quiescent and manoeuvre models and the input gain.
 
-    ``F_cv``, ``Q_cv``: CV embedded (spec models, :mod:`skytrack.models.embedding`) plus the
-    quiescent acceleration variance ``sigma_cv^2`` on the acceleration diagonal (module docstring);
-    ``F_ca``, ``Q_ca``: DWPA; ``G``: ``[T^2/2, T, 0]`` (DWNA gain, the input gain of §3.3 K).
+    ``F_cv``, ``Q_cv``: CV/DWNA embedded (spec models, :mod:`skytrack.models.embedding`; zero
+    acceleration rows); ``F_ca``, ``Q_ca``: DWPA; ``G``: ``[T^2/2, T, 0]`` (DWNA gain, the input
+    gain of §3.3 K).
     A negative step uses ``F(dt)`` (the polynomial ``F(-T) = F(T)^-1``) and ``Q(|dt|)``.
     This is the one place where the models are built.
     """
@@ -95,11 +95,9 @@ def embedded_axis_models(dt: np.ndarray, sigma_cv: float, sigma_ca: float) -> di
     sign = np.where(dt < 0, -1.0, 1.0)[..., None]
     D = np.concatenate([np.ones_like(sign), sign, np.ones_like(sign)], axis=-1)
     pattern = D[..., :, None] * D[..., None, :]
-    Q_cv = cv.Q_batch(step)
-    Q_cv[..., 2, 2] += sigma_cv**2
     G = np.zeros(step.shape + (ORDER,))
     G[..., :2] = PolynomialAxis(2, "piecewise_constant", 1.0).noise_gain(step)
-    return {"F_cv": cv.F_batch(step) * pattern, "Q_cv": Q_cv, "F_ca": ca.F_batch(step) * pattern,
+    return {"F_cv": cv.F_batch(step) * pattern, "Q_cv": cv.Q_batch(step), "F_ca": ca.F_batch(step) * pattern,
             "Q_ca": ca.Q_batch(step), "G": G * D}
 
 
@@ -138,12 +136,13 @@ def innovate_linear(state: GaussianState, z: np.ndarray, model, context: dict | 
 
 
 def kalman_update(x, P, H, R, nu, L):
-    """Gain ``K = P H^T S^-1`` (from the Cholesky factor ``L`` of S) and the Joseph-form update."""
+    """Gain ``K = P H^T S^-1`` (from the Cholesky factor ``L`` of S) and the Joseph-form update:
+    ``(x, P, K, I - K H)``."""
     PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
     K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
     x_new = x + linalg.matvec(K, nu)
     A = np.eye(x.shape[-1]) - linalg.matmul(K, H)
-    return x_new, linalg.sandwich(A, P, linalg.sandwich(K, R)), K
+    return x_new, linalg.sandwich(A, P, linalg.sandwich(K, R)), K, A
 
 
 def position_selector(ndim: int) -> np.ndarray:
@@ -282,7 +281,9 @@ class VariableDimensionFilter(BatchFilter):
         models = embedded_axis_models(dt, self.sigma_cv, self.sigma_ca)
         pick = manoeuvre[:, None, None]
         F = np.where(pick, models["F_ca"], models["F_cv"])
-        Q = np.where(pick, models["Q_ca"], models["Q_cv"])
+        Q_cv = models["Q_cv"]
+        Q_cv[..., 2, 2] += self.sigma_cv**2  # the quiescent acceleration (module docstring)
+        Q = np.where(pick, models["Q_ca"], Q_cv)
         return stack_axes(F, self.ndim), stack_axes(Q, self.ndim)
 
     def _predict_arrays(self, x, P, dt, manoeuvre):
@@ -307,7 +308,7 @@ class VariableDimensionFilter(BatchFilter):
                innovation: Innovation) -> tuple[VariableDimensionState, UpdateStats]:
         pred: VariableDimensionState = innovation.predicted
         z = np.asarray(z, dtype=float)
-        x, P, _ = kalman_update(pred.x, pred.P, innovation.H, innovation.R, innovation.nu, innovation.chol)
+        x, P, _, _ = kalman_update(pred.x, pred.P, innovation.H, innovation.R, innovation.nu, innovation.chol)
         rows = len(x)
         scan = pred.scan + 1
         manoeuvre = pred.manoeuvre.copy()
@@ -376,7 +377,7 @@ class VariableDimensionFilter(BatchFilter):
             xp, Pp = self._predict_arrays(x, P, meas_dt[:, age], always)
             nu = meas_z[:, age] - linalg.matvec(H, xp)
             L = linalg.cholesky(linalg.sandwich(H, Pp, meas_R[:, age]))
-            xu, Pu, _ = kalman_update(xp, Pp, H, meas_R[:, age], nu, L)
+            xu, Pu, _, _ = kalman_update(xp, Pp, H, meas_R[:, age], nu, L)
             x = np.where(active[:, None], xu, x)
             P = np.where(active[:, None, None], Pu, P)
             if self.count_refiltered:

@@ -1,0 +1,258 @@
+"""Input estimation with an onset-time bank, spec 004 §3.3 K (Chan, Hu & Plant 1979; onset
+hypotheses as Bogler 1987), requirement R13.
+
+Quiescent filter: CV with DWNA noise ``sigma_w`` in the m = 3 layout,
+``x_{k+1} = F x_k + G u_k + w_k`` with ``G = I (x) [T^2/2, T, 0]^T`` and the unknown acceleration
+u (``n_u`` = the number of axes, or the leading ``input_axes`` of them, e.g. 2 for a horizontal
+study).  The applied input ``u_app`` is kept in the acceleration entries of the state and used
+in prediction, ``x^- = F_cv x + G u_app`` (which is the CA transition of the mean); the
+covariance is propagated with ``F_cv`` on position and velocity and leaves the acceleration
+block alone, because IE treats ``u_app`` as known.  The acceleration block of P holds the
+covariance of ``u_app``: the initial estimate's until the first correction, then ``L_s`` of the
+last correction; it is uncorrelated with position and velocity (the initial cross-covariance is
+dropped at ``initiate``) and never enters the position/velocity numbers.
+
+Onset bank (per row, arrays ``[rows, N_w, ...]``): hypothesis s says an extra constant input
+started on the transition ``k-s -> k-s+1``.  One hypothesis is created after every update
+(slot 0, bias ``M = 0``) and the oldest dropped, so at the update of scan k slot j holds
+``s = j + 1``.  Per hypothesis, ``B_j = F M_{j-1} + G`` (predict), ``Psi_j = H B_j``,
+``M_j = (I - K_j H) B_j``, ``J += Psi^T S^-1 Psi``, ``g += Psi^T S^-1 nu`` (update); then
+``du_s = J^-1 g``, ``L_s = J^-1``, ``l_s = g^T J^-1 g``, ML onset ``s^ = argmax l_s``; detection
+when ``l_s^ > chi2_{n_u}^-1(1 - P_fa/N_w)`` (``bonferroni=False``: ``1 - P_fa``; ``threshold``
+overrides, ``inf`` disables detection).  On detection ``x <- x + M du``, ``P <- P + M L M^T``,
+``u_app <- u_app + du``, and the bank is cleared; the end of a manoeuvre is detected the same way.
+
+No detection while the bank holds fewer than ``min(2, N_w)`` hypotheses.  ``N_w`` is in
+[1, 50] (default 20); ``N_w = 1`` (E4) is a one-scan window: the only hypothesis is s = 1, whose
+``l_1`` is the NIS of the last innovation when ``n_u = n_z``, and a detection corrects from that
+innovation alone.
+
+Costs (R22): every product goes through :mod:`skytrack.core.linalg`; predict and update process
+all N_w slots (dead ones masked), so the multiply-adds per update are affine in N_w (E4).  With
+detection disabled and no active recorder, ``du`` and ``l`` are not computed.
+
+Diagnostics: recorder channel ``"detection"`` (rows, ``scan``, ``onset`` = s^, ``delta_u``, ``ell``)
+and, when a recorder is active, ``"bank"`` every update (rows, ``ell[K, N_w]`` with ``-inf`` for
+empty slots, ``delta_u[K, N_w, n_u]``, ``input_cov[K, N_w, n_u, n_u]`` = L_s,
+``bias[K, N_w, n, n_u]`` = M_s; slot j is s = j + 1).  Measurements: positions only (as VD).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from skytrack.core import linalg
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.registry import register_filter
+from skytrack.filters.variable_dimension import (
+    ORDER,
+    acceleration_index,
+    check_order3,
+    embedded_axis_models,
+    innovate_linear,
+    kalman_update,
+    stack_axes,
+)
+from skytrack.models.motion import MotionModel
+
+MAX_WINDOW = 50
+
+
+def detection_threshold(n_u: int, p_fa: float, window: int, bonferroni: bool = True) -> float:
+    """``chi2_{n_u}^-1(1 - P_fa/N_w)`` (Bonferroni over the N_w onset hypotheses) or ``chi2_{n_u}^-1(1 - P_fa)``."""
+    if not 0.0 < p_fa < 1.0:
+        raise ValueError(f"input estimation: p_fa must be in (0, 1), got {p_fa}")
+    return float(stats.chi2.ppf(1.0 - (p_fa / window if bonferroni else p_fa), n_u))
+
+
+@dataclass
+class InputEstimationState(GaussianState):
+    """IE rows: the quiescent estimate (acceleration entries = ``u_app``) and the onset bank.
+
+    ``bias[N, N_w, n, n_u]``: M of each hypothesis after an update, B after a prediction;
+    ``information[N, N_w, n_u, n_u]`` = J; ``score[N, N_w, n_u]`` = g; ``live[N, N_w]``; slot 0 newest.
+    """
+
+    bias: np.ndarray
+    information: np.ndarray
+    score: np.ndarray
+    live: np.ndarray
+    scan: np.ndarray
+
+    def estimate(self) -> GaussianState:
+        return GaussianState(self.x, self.P)
+
+
+def _push(buffer: np.ndarray, newest) -> np.ndarray:
+    """``buffer`` shifted by one slot along axis 1 with ``newest`` in slot 0 (the oldest drops out)."""
+    head = np.broadcast_to(newest, buffer[:, :1].shape)
+    return np.concatenate([head, buffer[:, :-1]], axis=1)
+
+
+@dataclass(eq=False)
+class InputEstimationFilter(BatchFilter):
+    """Input-estimation filter with an onset-time bank (§3.3 K, R13) on ``ndim`` axes."""
+
+    ndim: int
+    sigma_w: float = 1.0
+    window: int = 20
+    p_fa: float = 0.01
+    bonferroni: bool = True
+    threshold: float | None = None
+    input_axes: int | None = None
+
+    kind = "input-estimation"
+    capabilities = Capabilities()
+    state_type = InputEstimationState
+
+    def __post_init__(self) -> None:
+        if self.ndim not in (1, 2, 3):
+            raise ValueError(f"input estimation: ndim must be 1, 2 or 3, got {self.ndim!r}")
+        if not (np.isfinite(self.sigma_w) and self.sigma_w > 0):
+            raise ValueError(f"input estimation: sigma_w must be finite and > 0, got {self.sigma_w}")
+        if not (isinstance(self.window, (int, np.integer)) and 1 <= self.window <= MAX_WINDOW):
+            raise ValueError(f"input estimation: window N_w must be an integer in [1, {MAX_WINDOW}], got {self.window!r}")
+        self.window = int(self.window)
+        if self.input_axes is None:
+            self.input_axes = self.ndim
+        if not (isinstance(self.input_axes, (int, np.integer)) and 1 <= self.input_axes <= self.ndim):
+            raise ValueError(f"input estimation: input_axes must be in 1..{self.ndim}, got {self.input_axes!r}")
+        if self.threshold is None:
+            self.threshold = detection_threshold(self.input_axes, self.p_fa, self.window, self.bonferroni)
+        elif not self.threshold > 0:
+            raise ValueError(f"input estimation: threshold must be > 0 (inf disables detection), got {self.threshold}")
+        self.threshold = float(self.threshold)
+
+    @property
+    def state_dim(self) -> int:
+        return ORDER * self.ndim
+
+    @property
+    def n_u(self) -> int:
+        return int(self.input_axes)
+
+    @property
+    def min_hypotheses(self) -> int:
+        return min(2, self.window)
+
+    # -------------------------------------------------------------------- initiate
+    def initiate(self, x: np.ndarray, P: np.ndarray) -> InputEstimationState:
+        """The given estimate with ``u_app`` = its acceleration; the position/velocity-acceleration
+        cross-covariance is dropped (IE treats the applied input as known).  Empty bank but for the
+        hypothesis of an onset on the coming transition."""
+        x, P = np.array(x, dtype=float), np.array(P, dtype=float)
+        acc = acceleration_index(self.ndim)
+        other = np.setdiff1d(np.arange(self.state_dim), acc)
+        P[:, acc[:, None], other[None, :]] = 0.0
+        P[:, other[:, None], acc[None, :]] = 0.0
+        count, n, w, nu = len(x), self.state_dim, self.window, self.n_u
+        live = np.zeros((count, w), bool)
+        live[:, 0] = True
+        return InputEstimationState(x, P, np.zeros((count, w, n, nu)), np.zeros((count, w, nu, nu)),
+                                    np.zeros((count, w, nu)), live, np.zeros(count, np.int64))
+
+    # -------------------------------------------------------------------- predict
+    def transition(self, dt: np.ndarray):
+        """``(F_mean, F_cov, Q, G_u)``: the mean transition ``F_cv x + G u_app`` as one matrix, the
+        covariance transition (F_cv on position/velocity, identity on the applied input), the
+        DWNA Q and the input matrix ``[K, n, n_u]``."""
+        models = embedded_axis_models(dt, self.sigma_w, 1.0)
+        F_cov = models["F_cv"].copy()
+        F_cov[..., 2, 2] = 1.0
+        F_mean = F_cov.copy()
+        F_mean[..., :, 2] += models["G"]
+        G_u = np.zeros(dt.shape + (self.state_dim, self.n_u))
+        for axis in range(self.n_u):
+            G_u[:, ORDER * axis: ORDER * axis + ORDER, axis] = models["G"]
+        return (stack_axes(F_mean, self.ndim), stack_axes(F_cov, self.ndim), stack_axes(models["Q_cv"], self.ndim),
+                G_u)
+
+    def predict(self, state: InputEstimationState, dt, context: dict | None = None) -> InputEstimationState:
+        dt = np.broadcast_to(self.transition_dt(dt), (len(state),)).astype(float)
+        F_mean, F_cov, Q, G_u = self.transition(dt)
+        x = linalg.matvec(F_mean, state.x)
+        P = linalg.sandwich(F_cov, state.P, Q)
+        bias = linalg.matmul(F_cov[:, None], state.bias) + G_u[:, None]
+        bias = np.where(state.live[:, :, None, None], bias, 0.0)
+        return InputEstimationState(x, P, bias, state.information, state.score, state.live, state.scan)
+
+    # -------------------------------------------------------------------- innovate / update
+    def innovate(self, state: InputEstimationState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
+        return innovate_linear(state, z, model, context, self.kind)
+
+    def update(self, state: InputEstimationState, z: np.ndarray,
+               innovation: Innovation) -> tuple[InputEstimationState, UpdateStats]:
+        pred: InputEstimationState = innovation.predicted
+        H, nu, L = innovation.H, innovation.nu, innovation.chol
+        x, P, _, A = kalman_update(pred.x, pred.P, H, innovation.R, nu, L)
+        live = pred.live
+        rows = len(x)
+        scan = pred.scan + 1
+
+        # the bank: every slot is processed (dead ones masked) so the cost is affine in N_w
+        B = pred.bias
+        bias = linalg.matmul(A[:, None], B)
+        Psi = linalg.matmul(H[:, None], B)
+        weighted = linalg.cho_solve(L[:, None], Psi)  # S^-1 Psi
+        weighted_t = np.swapaxes(weighted, -1, -2)
+        information = pred.information + linalg.matmul(np.swapaxes(Psi, -1, -2), weighted)
+        score = pred.score + linalg.matvec(weighted_t, nu[:, None])
+        mask = live[:, :, None]
+        bias = np.where(mask[..., None], bias, 0.0)
+        information = np.where(mask[..., None], information, 0.0)
+        score = np.where(mask, score, 0.0)
+
+        detect = np.zeros(rows, bool)
+        if np.isfinite(self.threshold) or self.recorder.active:
+            delta_u, ell, input_cov = self._hypotheses(information, score, live)
+            onset = np.argmax(ell, axis=1)
+            best = ell[np.arange(rows), onset]
+            detect = (live.sum(axis=1) >= self.min_hypotheses) & (best > self.threshold)
+            if self.recorder.active:
+                self.recorder.record("bank", np.arange(rows), ell=ell, delta_u=delta_u, input_cov=input_cov, bias=bias)
+        if detect.any():
+            hit = np.flatnonzero(detect)
+            s_hat = onset[hit]
+            M = bias[hit, s_hat]
+            du = delta_u[hit, s_hat]
+            cov = input_cov[hit, s_hat]
+            x, P = x.copy(), P.copy()
+            x[hit] += linalg.matvec(M, du)
+            acc = acceleration_index(self.ndim)[: self.n_u]
+            x[hit[:, None], acc[None, :]] += du
+            P[hit] += linalg.sandwich(M, cov)
+            P[hit[:, None, None], acc[None, :, None], acc[None, None, :]] = cov
+            live = live.copy()
+            live[hit] = False
+            self.recorder.record("detection", hit, scan=scan[hit], onset=s_hat + 1, delta_u=du, ell=best[hit])
+
+        # one new hypothesis (onset on the coming transition) per scan; the oldest drops out
+        new = InputEstimationState(x, P, _push(np.where(live[:, :, None, None], bias, 0.0), 0.0),
+                                   _push(np.where(live[:, :, None, None], information, 0.0), 0.0),
+                                   _push(np.where(live[:, :, None], score, 0.0), 0.0), _push(live, True), scan)
+        return new, UpdateStats(innovation.d2 / innovation.m)
+
+    def _hypotheses(self, information, score, live):
+        """``(du[K, N_w, n_u], l[K, N_w], L[K, N_w, n_u, n_u])``; ``l = -inf`` where a slot is empty or
+        its J is not yet positive definite (a hypothesis after a zero step has no information)."""
+        nu = self.n_u
+        usable = live & np.all(np.diagonal(information, axis1=-2, axis2=-1) > 0.0, axis=-1)
+        J = np.where(usable[:, :, None, None], information, np.eye(nu))
+        chol = linalg.cholesky(J)
+        delta_u = linalg.cho_solve(chol, score)
+        input_cov = linalg.cho_solve(chol, np.broadcast_to(np.eye(nu), J.shape))
+        ell = linalg.matvec(score[..., None, :], delta_u)[..., 0]
+        return delta_u, np.where(usable, ell, -np.inf), input_cov
+
+
+@register_filter("input-estimation")
+def _input_estimation(motion: MotionModel, compiled: bool = True, sigma_w: float = 1.0, window: int = 20,
+                      p_fa: float = 0.01, bonferroni: bool = True, threshold: float | None = None,
+                      input_axes: int | None = None) -> InputEstimationFilter:
+    """IE filter on the axes of an order-3 ``motion`` (only its number of axes is used).  ``compiled``
+    is accepted and ignored: the family has no compiled kernel."""
+    return InputEstimationFilter(check_order3(motion, "input-estimation"), sigma_w, window, p_fa, bonferroni,
+                                 threshold, input_axes)
