@@ -52,8 +52,9 @@ ETA_TOLERANCE = 1e-10
 INFLATION_LIMIT = 1e6
 #: relative precision of the inflation factor found by bisection
 INFLATION_TOLERANCE = 1e-9
-#: half-width of the search interval of ln p around the trace-optimal p (criterion "det")
+#: half-width of the search interval of ln p around the trace-optimal p (criterion "det"), and its tolerance
 LOG_P_HALF_WIDTH = 30.0
+LOG_P_TOLERANCE = 1e-10
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 #: multiply-adds counted per trial point of a scalar search, per measured component
 _SEARCH_MADDS_PER_COMPONENT = 3
@@ -187,7 +188,7 @@ def minkowski_sum_bound(A: np.ndarray, B: np.ndarray, criterion: str = "trace") 
             return np.sum(np.log((1.0 + np.exp(-s))[:, None] * alpha + (1.0 + np.exp(s))[:, None] * (1.0 - alpha)), axis=-1)
 
         s, _ = _golden_minimise(log_det, log_p_trace - LOG_P_HALF_WIDTH, log_p_trace + LOG_P_HALF_WIDTH,
-                                2.0 * LOG_P_HALF_WIDTH, ETA_TOLERANCE, _SEARCH_MADDS_PER_COMPONENT * n)
+                                2.0 * LOG_P_HALF_WIDTH, LOG_P_TOLERANCE, _SEARCH_MADDS_PER_COMPONENT * n)
         p = np.exp(s)
     out[both] = linalg.symmetrize((1.0 + 1.0 / p)[:, None, None] * a + (1.0 + p)[:, None, None] * b)
     return out
@@ -323,8 +324,10 @@ class SetMembershipState(ArrayState):
 class SetMembershipFilter(BatchFilter):
     """Ellipsoidal set-membership filter (§3.3 I) over a constant-velocity motion's transition.
 
-    ``a_max`` bounds each axis's acceleration (m/s^2); ``process_bound`` is ``"box"`` (default,
-    :func:`box_process_bound`) or ``"constant"`` (:func:`constant_input_process_bound`);
+    ``a_max`` (m/s^2) bounds the acceleration: with ``process_bound="box"`` (default,
+    :func:`box_process_bound`) each axis's ``|a_i(t)|``, free to vary within the interval; with
+    ``"constant"`` (:func:`constant_input_process_bound`) the norm ``|a|`` of an acceleration held
+    constant over each interval (tighter, but not guaranteed for a turn, whose acceleration rotates);
     ``R_b = r_bound_scale * R`` with ``R`` the measurement model's noise (9: the 3-sigma bound of a
     Gaussian error, spec §6); ``criterion`` is ``"trace"`` or ``"det"`` for both steps.
     """
