@@ -30,6 +30,12 @@ scan k uses the same ``C_k``.  Both filters therefore use the same frames.  Beca
 drops the cross blocks, a zero-length prediction of ``berg_frame`` right after an update is not
 the identity (``Capabilities(zero_dt_identity=False)``, as for a mixing step).
 
+Registered kinds ``"berg-full"`` and ``"berg-frame"`` (options ``tangential``, ``normal``,
+``binormal`` as ``(tau, sigma)``, ``mean_jerk``, and ``block_rotation`` for the frame filter)
+accept only 3-axis motions with 3 states per axis.  A channel not given takes the Singer
+parameters of the motion's axis with the same index when that axis is Singer, else the spec §6
+default (:data:`SPEC_CHANNELS`: (60 s, 3), (15 s, 40), (30 s, 10) m/s^2).
+
 Every product goes through :mod:`skytrack.core.linalg`; the frame and mean-jerk arithmetic
 (cross products, norms) is counted in the R22 model as its multiplications.  Recorder channels:
 ``"gain"`` (the gain of each update: 9x3 for the full filter, one 3-vector per channel for the
