@@ -484,3 +484,20 @@ def test_bad_configuration_is_a_named_value_error():
         CoordinatedTurn(0.1, 1.0).scaled(0.0)
     with pytest.raises(ValueError, match="tau"):
         singer_input(0.0, 1.0)
+
+
+@pytest.mark.parametrize("omega", [0.3, 0.1, -0.05, 0.01, 1e-3, 1e-4, 0.0])
+@pytest.mark.parametrize("T", [0.1, 1.0, 4.0, 12.0, 30.0])
+def test_coordinated_turn_continuous_noise_equals_van_loan(omega, T):
+    """noise="continuous": white acceleration of PSD sigma_w^2 on the turning velocity (and on vz),
+    discretised in closed form (series below |wT| = 0.1) = Van Loan of the CT generator, 1e-12."""
+    q = 0.49
+    model = CoordinatedTurn(omega, math.sqrt(q), ndim=3, noise="continuous")
+    A = np.zeros((6, 6))
+    A[0, 1] = A[2, 3] = A[4, 5] = 1.0
+    A[1, 3], A[3, 1] = -omega, omega
+    L = np.zeros((6, 3))
+    L[1, 0] = L[3, 1] = L[5, 2] = 1.0
+    F, Q = van_loan(A, L, np.eye(3) * q, T)
+    np.testing.assert_allclose(model.Q(T), Q, rtol=0, atol=1e-12 * np.abs(Q).max())
+    np.testing.assert_allclose(model.F(T), F, rtol=0, atol=1e-12 * np.abs(F).max())

@@ -199,7 +199,8 @@ def track(
     full_covariance: Annotated[bool, typer.Option(help="Also write the full covariance as cov_i_j columns.")] = False,
     lenient: Annotated[bool, typer.Option(help="Skip and count malformed plot rows instead of stopping.")] = False,
     chunk_rows: Annotated[int, typer.Option(help="Plots read, validated and tracked per chunk (bounds memory, Parquet and CSV alike).")] = defaults.CHUNK_ROWS,
-    filter_kind: Annotated[Optional[str], typer.Option("--filter", help="Filter family: kalman-psi (default: Kalman with the manoeuvre switch), kalman, imm.")] = None,
+    filter_kind: Annotated[Optional[str], typer.Option("--filter", help="Filter family: kalman-psi (default: Kalman with the manoeuvre switch), kalman, imm, static-bank, or any registered kind.")] = None,
+    model_set: Annotated[Optional[str], typer.Option("--model-set", help="Model set of --filter imm or static-bank: cv-ct-noisy (default), cv-ct, noise-levels; cv-ca, full and cv-ca-singer with --model singer.")] = None,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
 ) -> None:
@@ -228,6 +229,8 @@ def track(
         config = TrackerConfig.from_file(config_file).replace(**given)
     if filter_kind is not None:
         config = config.replace(filter_kind=filter_kind)
+    if model_set is not None:
+        config = config.replace(model_set=model_set)
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:

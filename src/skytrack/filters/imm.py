@@ -114,6 +114,7 @@ class IMMFilter(BatchFilter):
     transition: TransitionMatrix | SojournTransition
     initial_probabilities: np.ndarray | None = None
     names: tuple[str, ...] | None = None
+    manoeuvre_mode: int | None = None
     capabilities: Capabilities = field(init=False)
 
     kind = "imm"
@@ -137,6 +138,8 @@ class IMMFilter(BatchFilter):
             self.names = tuple(f"mode{j}" for j in range(count))
         if len(self.names) != count:
             raise ValueError(f"names needs one name per mode ({count}), got {self.names}")
+        if self.manoeuvre_mode is not None and not 0 <= self.manoeuvre_mode < count:
+            raise ValueError(f"manoeuvre_mode must be a mode index in 0..{count - 1}, got {self.manoeuvre_mode}")
         # a fixed matrix mixes over a zero step, so a zero-step prediction is not the identity
         self.capabilities = Capabilities(zero_dt_identity=not self.transition.mixes_at_zero_step,
                                          multiple_model=True)
@@ -144,6 +147,17 @@ class IMMFilter(BatchFilter):
     @property
     def state_dim(self) -> int:
         return self.modes[0].state_dim
+
+    @property
+    def supports_manoeuvre_gate(self) -> bool:
+        """A tracker may re-gate quiet tracks with the manoeuvre mode alone (``context["manoeuvre"]``)."""
+        return self.manoeuvre_mode is not None
+
+    def in_manoeuvre(self, state: MixtureState) -> np.ndarray:
+        """Rows whose manoeuvre mode is the most probable (they need no manoeuvre gate)."""
+        if self.manoeuvre_mode is None:
+            return np.zeros(len(state), bool)
+        return np.argmax(state.mu, axis=1) == self.manoeuvre_mode
 
     @property
     def n_modes(self) -> int:
@@ -179,6 +193,11 @@ class IMMFilter(BatchFilter):
         for j, mode in enumerate(self.modes):
             predicted = mode.predict(GaussianState(x0[:, j], P0[:, j]), dt, context)
             xs[:, j], Ps[:, j] = predicted.x, predicted.P
+        if context is not None and context.get("manoeuvre") and self.manoeuvre_mode is not None:
+            # the manoeuvre gate: the prediction of the manoeuvre mode alone; a plot found only this
+            # way puts the track in that mode (the counterpart of forcing psi = 1, spec 000 S3)
+            c = np.zeros_like(c)
+            c[:, self.manoeuvre_mode] = 1.0
         return MixtureState(xs, Ps, c)
 
     def innovate(self, state: MixtureState, z: np.ndarray, model, context: dict | None = None) -> Innovation:

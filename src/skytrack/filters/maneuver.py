@@ -65,6 +65,10 @@ class ManoeuvreSwitchFilter(BatchFilter):
     def transition(self):
         return self.kalman.transition
 
+    def in_manoeuvre(self, state: ManoeuvreState) -> np.ndarray:
+        """Rows with psi = 1 (they need no manoeuvre gate)."""
+        return state.psi
+
     def initiate(self, x: np.ndarray, P: np.ndarray) -> ManoeuvreState:
         count = len(x)
         return ManoeuvreState(np.array(x, dtype=float), np.array(P, dtype=float), np.zeros(count, bool),

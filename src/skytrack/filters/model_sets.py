@@ -36,14 +36,17 @@ from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.registry import register_filter
 from skytrack.filters.static_bank import StaticBankFilter
 from skytrack.models.embedding import embed
-from skytrack.models.motion import MotionModel, SingerAxisModel
+from skytrack.models.motion import MotionModel, SingerAxisModel, constant_velocity
 from skytrack.models.polynomial import dwna, dwpa
 from skytrack.models.turn import coordinated_turn
 
 G0 = 9.80665
-MODEL_SETS = ("cv-ca", "cv-ct", "full", "cv-ca-singer", "noise-levels")
+MODEL_SETS = ("cv-ca", "cv-ct", "full", "cv-ca-singer", "noise-levels", "cv-ct-noisy")
 #: sets that need the acceleration state of the m = 3 embedding
 ORDER3_SETS = ("cv-ca", "full", "cv-ca-singer")
+#: "dwna": the spec's discrete noise (sigma_cv, sigma_ct, m/s^2); "continuous": white acceleration
+#: of PSD q_cv, q_ct (m^2/s^3) for CV and CT, right for a tracker's uneven revisit intervals
+SET_NOISE = ("dwna", "continuous")
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,10 @@ class ModelSetParameters:
     singer_tau: float = 10.0
     singer_sigma: float = 30.0
     q_scales: tuple[float, ...] = (1.0, 3000.0)
+    noise: str = "dwna"
+    q_cv: float = 0.5
+    q_ct: float = 5.0
+    noisy_factor: float = 3000.0
 
     def __post_init__(self) -> None:
         for name in ("sigma_cv", "sigma_ca", "sigma_ct", "load_factor", "reference_speed", "singer_tau", "singer_sigma"):
@@ -67,6 +74,12 @@ class ModelSetParameters:
                 raise ValueError(f"model set: {name} must be finite and > 0, got {value}")
         if self.turn_rate_deg_s is not None and not (math.isfinite(self.turn_rate_deg_s) and self.turn_rate_deg_s > 0):
             raise ValueError(f"model set: turn_rate_deg_s must be finite and > 0, got {self.turn_rate_deg_s}")
+        if self.noise not in SET_NOISE:
+            raise ValueError(f"model set: noise must be one of {SET_NOISE}, got {self.noise!r}")
+        for name in ("q_cv", "q_ct"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"model set: {name} must be finite and >= 0, got {value}")
         if len(self.q_scales) < 2 or any(not (math.isfinite(s) and s > 0) for s in self.q_scales):
             raise ValueError(f"model set: q_scales needs at least two finite factors > 0, got {self.q_scales}")
 
@@ -88,17 +101,21 @@ def build_model_set(name: str, motion: MotionModel, params: ModelSetParameters |
         return [f"q x{scale:g}" for scale in params.q_scales], [motion.scaled(scale) for scale in params.q_scales]
     if name in ORDER3_SETS and order != 3:
         raise ValueError(f"model set {name!r} needs 3 states per axis (position, velocity, acceleration); "
-                         f"the motion model has {order} (use a CA or Singer motion model)")
+                         f"the motion model has {order} (use a CA or Singer motion model: skytrack track --model singer)")
     if order not in (2, 3):
         raise ValueError(f"model set {name!r} needs 2 or 3 states per axis, the motion model has {order}")
     if "ct" in name.split("-") or name == "full":
         if ndim not in (2, 3):
             raise ValueError(f"model set {name!r}: a coordinated turn needs 2 or 3 axes, the motion model has {ndim}")
 
+    continuous = params.noise == "continuous"
+
     def cv():
-        return embed(dwna(ndim, params.sigma_cv), order)
+        return embed(constant_velocity(ndim, params.q_cv) if continuous else dwna(ndim, params.sigma_cv), order)
 
     def ct(sign):
+        if continuous:
+            return coordinated_turn(ndim, sign * params.omega0, math.sqrt(params.q_ct), order=order, noise="continuous")
         return coordinated_turn(ndim, sign * params.omega0, params.sigma_ct, order=order)
 
     def ca():
@@ -114,6 +131,8 @@ def build_model_set(name: str, motion: MotionModel, params: ModelSetParameters |
         "full": [("CV", cv), ("CA", ca), (f"CT +{turn}", lambda: ct(1.0)), (f"CT -{turn}", lambda: ct(-1.0)),
                  ("Singer", singer)],
         "cv-ca-singer": [("CV", cv), ("CA", ca), ("Singer", singer)],
+        "cv-ct-noisy": [("CV", cv), (f"CT +{turn}", lambda: ct(1.0)), (f"CT -{turn}", lambda: ct(-1.0)),
+                        (f"CV q x{params.noisy_factor:g}", lambda: cv().scaled(params.noisy_factor))],
     }
     chosen = sets[name]
     return [label for label, _ in chosen], [build() for _, build in chosen]
@@ -140,7 +159,7 @@ def _default_set(motion: MotionModel, kind: str) -> str:
 
 @register_filter("imm")
 def build_imm(motion: MotionModel, model_set: str | None = None, sojourn_s=None, transition_matrix=None,
-              compiled: bool = True, **set_options) -> IMMFilter:
+              manoeuvre_gate: bool = True, compiled: bool = True, **set_options) -> IMMFilter:
     """IMM over a named model set (default ``cv-ct`` for 2 states per axis, ``cv-ca`` for 3)."""
     name = model_set or _default_set(motion, "imm")
     names, models = build_model_set(name, motion, _parameters(set_options))
@@ -150,7 +169,17 @@ def build_imm(motion: MotionModel, model_set: str | None = None, sojourn_s=None,
         transition = TransitionMatrix(np.asarray(transition_matrix, dtype=float))
     else:
         transition = SojournTransition(tuple(sojourn_s) if sojourn_s is not None else default_sojourn(len(models)))
-    return IMMFilter([KalmanFilter(m, compiled=compiled) for m in models], transition, names=tuple(names))
+    return IMMFilter([KalmanFilter(m, compiled=compiled) for m in models], transition, names=tuple(names),
+                     manoeuvre_mode=_noisiest_mode(name, set_options) if manoeuvre_gate else None)
+
+
+def _noisiest_mode(name: str, set_options: dict) -> int | None:
+    """The mode a tracker's manoeuvre gate predicts with: the high-noise CV of the sets that have one."""
+    if name == "noise-levels":
+        return int(np.argmax(_parameters(set_options).q_scales))
+    if name == "cv-ct-noisy":
+        return 3
+    return None
 
 
 @register_filter("static-bank")

@@ -6,7 +6,14 @@ Horizontal transition (s = sin wT, c = cos wT, w = omega):
 for ``|wT| < 1e-6`` the series ``s/w ~ T``, ``(1-c)/w ~ w T^2/2`` (omega = 0 is CV).
 ``(1-c)/w`` is evaluated as ``2 sin^2(wT/2)/w`` (no cancellation).  The z axis (``ndim=3``) is
 constant velocity.  Process noise: DWNA per axis, ``Q_axis = sigma_w^2 g g^T``,
-``g = [T^2/2, T]`` (``sigma_w_vertical`` on z, default sigma_w).
+``g = [T^2/2, T]`` (``sigma_w_vertical`` on z, default sigma_w); or, with
+``noise="continuous"``, white acceleration of PSD ``q = sigma_w^2`` (m^2/s^3) on the turning
+velocity, discretised exactly (order-2 horizontal block, w = omega):
+``Q_pp = 2q (wT - sin wT)/w^3``, ``Q_pv = q (1 - cos wT)/w^2`` (own axis),
+``Q_x,vy = q (wT - sin wT)/w^2 = -Q_vx,y``, ``Q_vv = q T``, ``Q_xy = Q_vx,vy = 0``
+(Van Loan of the CT generator; series below ``|wT| < 0.1``), and CV's continuous Q on z.
+The continuous form is the tracker's: its variance grows with the step as it should for
+uneven revisit intervals, where DWNA's ``T^2`` velocity variance does not.
 
 Two layouts (axis-major, spec 004 §2):
 
@@ -42,6 +49,10 @@ from skytrack.models.motion import _as_steps
 #: |omega T| below which the small-angle series is used (spec 004 §3.3 B)
 SMALL_TURN = 1e-6
 CT_ACCELERATION = ("zero", "centripetal")
+CT_NOISE = ("dwna", "continuous")
+#: |omega T| below which the continuous-noise Q uses its series (4 terms: truncation < 1e-16
+#: relative there, while the closed form loses ~1e-16/(wT)^3 to cancellation)
+SMALL_TURN_Q = 0.1
 
 
 def turn_coefficients(omega: float, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -72,6 +83,7 @@ class CoordinatedTurn:
     order: int = 2
     ct_acceleration: str = "zero"
     sigma_w_vertical: float | None = None
+    noise: str = "dwna"
 
     def __post_init__(self):
         if not math.isfinite(self.omega):
@@ -84,6 +96,8 @@ class CoordinatedTurn:
             raise ValueError(f"coordinated turn: ndim must be 2 or 3, got {self.ndim!r}")
         if self.order not in (2, 3):
             raise ValueError(f"coordinated turn: order must be 2 or 3 (m = 3 embedding), got {self.order!r}")
+        if self.noise not in CT_NOISE:
+            raise ValueError(f"coordinated turn: noise must be one of {CT_NOISE}, got {self.noise!r}")
         if self.ct_acceleration not in CT_ACCELERATION:
             raise ValueError(f"coordinated turn: ct_acceleration must be one of {CT_ACCELERATION}, "
                              f"got {self.ct_acceleration!r}")
@@ -156,6 +170,8 @@ class CoordinatedTurn:
         return F
 
     def _q2(self, t: np.ndarray) -> np.ndarray:
+        if self.noise == "continuous":
+            return self._q2_continuous(t)
         Q = np.zeros(t.shape + (2 * self.ndim, 2 * self.ndim))
         vertical = self.sigma_w if self.sigma_w_vertical is None else self.sigma_w_vertical
         for axis in range(self.ndim):
@@ -165,6 +181,30 @@ class CoordinatedTurn:
             for i in range(2):
                 for j in range(2):
                     Q[..., 2 * axis + i, 2 * axis + j] = g[i] * g[j]
+        return Q
+
+    def _q2_continuous(self, t: np.ndarray) -> np.ndarray:
+        q, w = self.sigma_w**2, self.omega
+        wt = w * t
+        small = np.abs(wt) < SMALL_TURN_Q
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # (wT - sin wT)/w^3 and (1 - cos wT)/w^2, with their series for small wT
+            x2 = wt * wt
+            a = np.where(small, t**3 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 / 362880))),
+                         (wt - np.sin(wt)) / w**3)
+            b = np.where(small, t * t * (1 / 2 - x2 * (1 / 24 - x2 * (1 / 720 - x2 / 40320))),
+                         2.0 * np.sin(0.5 * wt) ** 2 / (w * w))
+        Q = np.zeros(t.shape + (2 * self.ndim, 2 * self.ndim))
+        Q[..., 0, 0] = Q[..., 2, 2] = 2.0 * q * a
+        Q[..., 0, 1] = Q[..., 1, 0] = Q[..., 2, 3] = Q[..., 3, 2] = q * b
+        Q[..., 0, 3] = Q[..., 3, 0] = q * w * a
+        Q[..., 1, 2] = Q[..., 2, 1] = -q * w * a
+        Q[..., 1, 1] = Q[..., 3, 3] = q * t
+        if self.ndim == 3:
+            qz = q if self.sigma_w_vertical is None else self.sigma_w_vertical**2
+            Q[..., 4, 4] = qz * t**3 / 3.0
+            Q[..., 4, 5] = Q[..., 5, 4] = qz * t * t / 2.0
+            Q[..., 5, 5] = qz * t
         return Q
 
     def _embed(self, M2: np.ndarray, columns: bool) -> np.ndarray:
@@ -195,10 +235,11 @@ class CoordinatedTurn:
     def __repr__(self) -> str:
         return (f"CoordinatedTurn(omega={self.omega!r}, sigma_w={self.sigma_w!r}, ndim={self.ndim}, "
                 f"order={self.order}, ct_acceleration={self.ct_acceleration!r}, "
-                f"sigma_w_vertical={self.sigma_w_vertical!r})")
+                f"sigma_w_vertical={self.sigma_w_vertical!r}, noise={self.noise!r})")
 
 
 def coordinated_turn(ndim: int, omega: float, sigma_w: float, order: int = 2,
-                     ct_acceleration: str = "zero", sigma_w_vertical: float | None = None) -> CoordinatedTurn:
+                     ct_acceleration: str = "zero", sigma_w_vertical: float | None = None,
+                     noise: str = "dwna") -> CoordinatedTurn:
     """CT(omega) in ``ndim`` (2 or 3) dimensions, ``order`` 2 or 3 states per axis."""
-    return CoordinatedTurn(omega, sigma_w, ndim, order, ct_acceleration, sigma_w_vertical)
+    return CoordinatedTurn(omega, sigma_w, ndim, order, ct_acceleration, sigma_w_vertical, noise)

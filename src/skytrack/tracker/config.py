@@ -45,6 +45,14 @@ MOTION_MODELS = ("singer", "cv")
 #: manoeuvre process-noise factor by model when none is given: the quiet CV model needs the
 #: switch to follow turns; Singer's own acceleration state covers them (1 = switch off)
 DEFAULT_MANOEUVRE_SCALE = {"cv": 3000.0, "singer": 1.0}
+#: the tracker's multiple-model filters (imm, static-bank): model set and its options, chosen on
+#: the terminal scenario (seeds 1-3; spec 004's own defaults are for fighter manoeuvres at 1 s
+#: scans).  Civil traffic turns at about 3 deg/s; continuous white-noise acceleration keeps the
+#: modes right for uneven revisit intervals; the noisy CV mode serves the manoeuvre gate.
+TRACKER_MODEL_SET = "cv-ct-noisy"
+TRACKER_MODEL_SET_OPTIONS = {"noise": "continuous", "turn_rate_deg_s": 3.0, "q_cv": 0.2, "q_ct": 1.0}
+TRACKER_SOJOURN_S = {"cv-ct-noisy": (600.0, 30.0, 30.0, 10.0)}
+MULTIPLE_MODEL_KINDS = ("imm", "static-bank")
 
 
 @dataclass
@@ -75,13 +83,16 @@ class MotionConfig:
 @dataclass
 class FilterConfig:
     """A registered filter kind and its options.  For "kalman-psi", ``manoeuvre_q_scale`` None
-    takes the motion model's default (3000 for CV, 1 = off for Singer)."""
+    takes the motion model's default (3000 for CV, 1 = off for Singer).  For "imm" and
+    "static-bank", ``model_set`` names the model set (:mod:`skytrack.filters.model_sets`; default
+    :data:`TRACKER_MODEL_SET`), with the tracker's options unless ``options`` give others."""
 
     kind: str = "kalman-psi"
     manoeuvre_q_scale: float | None = None
     manoeuvre_on_nis: float = 3.0
     manoeuvre_off_nis: float = 1.2
     manoeuvre_memory: float = 0.5
+    model_set: str | None = None
     options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -104,6 +115,15 @@ class FilterConfig:
             options.setdefault("on", self.manoeuvre_on_nis)
             options.setdefault("off", self.manoeuvre_off_nis)
             options.setdefault("memory", self.manoeuvre_memory)
+        if self.kind in MULTIPLE_MODEL_KINDS:
+            name = options.setdefault("model_set", self.model_set or TRACKER_MODEL_SET)
+            for key, value in TRACKER_MODEL_SET_OPTIONS.items():
+                options.setdefault(key, value)
+            if self.kind == "imm" and name in TRACKER_SOJOURN_S and "transition_matrix" not in options:
+                options.setdefault("sojourn_s", TRACKER_SOJOURN_S[name])
+        elif self.model_set is not None:
+            raise ValueError(f"model_set applies to the multiple-model filters {MULTIPLE_MODEL_KINDS}, "
+                             f"not to filter kind {self.kind!r}")
         return build_filter(self.kind, motion, **options)
 
 

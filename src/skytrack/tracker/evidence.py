@@ -189,7 +189,8 @@ def ssr_log_ratio_reference(plot_code, plot_alt, track_code, track_alt, dt, ssr)
     code = np.where(has_plot_code, code, ssr[T3_NONE] - ssr[C3_NONE])
     var = ssr[ALT_VAR] + ssr[VZ_VAR] * dt * dt
     near = ssr[LOG_KEEP] - 0.5 * ((plot_alt - track_alt) ** 2 / var + np.log(2.0 * np.pi * var)) + ssr[LOG_SPAN]
-    height = ssr[TC_HAS] - ssr[CC_HAS] + np.logaddexp(near, ssr[LOG_GARBLE])
+    with np.errstate(invalid="ignore"):  # plots without Mode C (NaN) are replaced just below
+        height = ssr[TC_HAS] - ssr[CC_HAS] + np.logaddexp(near, ssr[LOG_GARBLE])
     height = np.where(np.isfinite(plot_alt), height, ssr[TC_NONE] - ssr[CC_NONE])
     return np.where(has_track_code, code, 0.0) + np.where(np.isfinite(track_alt), height, 0.0)
 

@@ -90,10 +90,11 @@ class OutputClock:
 
 
 def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank,
-                   full_covariance: bool) -> dict[str, np.ndarray]:
+                   full_covariance: bool, model_probs: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """What one output instant contributes: the bank's rows ``rows`` with states ``x``, ``P`` at
     ``instant``, kept compact (variances, or the covariance's upper triangle) until
-    :func:`build_table` makes the table's columns for a whole drain at once."""
+    :func:`build_table` makes the table's columns for a whole drain at once.  ``model_probs``
+    ``[K, M]``: a multiple-model filter's model probabilities."""
     n = x.shape[1]
     record = {
         "time": np.full(len(rows), instant), "track_id": bank.track_id[rows], "x": x,
@@ -104,7 +105,22 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
     if full_covariance:
         iu, ju = np.triu_indices(n)
         record["upper"] = P[:, iu, ju]
+    if model_probs is not None:
+        record["model_probs"] = model_probs
     return record
+
+
+def model_probs_text(probabilities: np.ndarray, names: tuple[str, ...]):
+    """The ``model_probs`` column: one JSON object per row, model name -> probability (4 digits)."""
+    import json
+
+    import pyarrow as pa
+
+    text = np.full(len(probabilities), "{", dtype=object)
+    for j, name in enumerate(names):
+        key = ("" if j == 0 else ", ") + json.dumps(str(name)) + ": "
+        text = text + key + np.char.mod("%.4g", probabilities[:, j]).astype(object)
+    return pa.array((text + "}").tolist(), type=pa.string())
 
 
 def _status_text(coasting: np.ndarray):
@@ -113,7 +129,8 @@ def _status_text(coasting: np.ndarray):
     return pa.DictionaryArray.from_arrays(pa.array(coasting.astype(np.int8)), pa.array(["confirmed", "coasting"]))
 
 
-def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin) -> dict[str, object]:
+def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin,
+                model_names: tuple[str, ...] | None = None) -> dict[str, object]:
     """The tracks-table columns (docs/formats.md order) of concatenated instant records.
 
     Numbers are numpy arrays (NaN where unknown), text columns pyarrow arrays (null where
@@ -151,7 +168,10 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     columns["icao24"] = icao24_text(parts["icao24"])
     columns["callsign"] = pa.nulls(count, pa.string())
     columns["iff"] = iff_text(parts["iff"])
-    columns["model_probs"] = pa.nulls(count, pa.string())
+    if "model_probs" in parts and model_names is not None:
+        columns["model_probs"] = model_probs_text(parts["model_probs"], model_names)
+    else:
+        columns["model_probs"] = pa.nulls(count, pa.string())
     if "upper" in parts:
         upper = parts["upper"]
         for k, name in enumerate(covariance_columns(x.shape[0])):
@@ -166,7 +186,7 @@ def tracks_frame(columns: dict[str, object]) -> pd.DataFrame:
 
     frame = {}
     for name, values in columns.items():
-        if name in EMPTY_COLUMNS:
+        if name in EMPTY_COLUMNS and values.null_count == len(values):
             frame[name] = np.full(len(values), None, dtype=object)
         elif isinstance(values, pa.Array):
             plain = values.dictionary_decode() if isinstance(values, pa.DictionaryArray) else values

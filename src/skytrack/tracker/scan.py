@@ -128,7 +128,8 @@ class ScanProcessor(CompiledStages):
             else build_assigner(assoc.assigner)
         self.llr_cost = assoc.scorer == "llr"
         self.scoring = TrackScoring(config.score, sensors.sensors, schedule.period, dim, config.lifecycle.delete_misses)
-        self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", 1.0) != 1.0
+        # psi filters with scale 1 never manoeuvre; IMMs have no scale
+        self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", None) != 1.0
         geometry = config.geometry
         self.measurements = [
             ConvertedPositionModel(dim, order, s.sigma_range_rate_mps
@@ -217,7 +218,7 @@ class ScanProcessor(CompiledStages):
                 elif stage == "manoeuvre":
                     if not self.manoeuvre_gate:
                         continue
-                    members = confirmed & expected & ~hit & ~bank.state.psi
+                    members = confirmed & expected & ~hit & ~self.filter.in_manoeuvre(bank.state)
                 else:
                     members = status == TENTATIVE
                 tracks = np.flatnonzero(members)

@@ -137,7 +137,7 @@ class Tracker:
         if not self.outputs:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         outputs, self.outputs = self.outputs, []
-        return tracks_frame(build_table(outputs, self.dim, self.order, self.sensors.origin))
+        return tracks_frame(build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names))
 
     def drain_arrow(self):
         """:meth:`drain` as a pyarrow Table (typed as the tracks file stores it), for a writer:
@@ -145,14 +145,14 @@ class Tracker:
         if not self.outputs:
             return None
         outputs, self.outputs = self.outputs, []
-        return tracks_arrow(build_table(outputs, self.dim, self.order, self.sensors.origin))
+        return tracks_arrow(build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names))
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
         rows = np.flatnonzero(self.bank.status == CONFIRMED) if confirmed_only else np.arange(len(self.bank))
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
-        return tracks_frame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin))
+        return tracks_frame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin, self.model_names))
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
@@ -221,5 +221,14 @@ class Tracker:
 
     def _rows_at(self, instant: float, rows: np.ndarray) -> dict[str, np.ndarray]:
         bank = self.bank
-        predicted = self.filter.predict(bank.state.take(rows), instant - bank.t[rows]).estimate()
-        return instant_record(instant, rows, predicted.x, predicted.P, bank, self.config.output.full_covariance)
+        predicted = self.filter.predict(bank.state.take(rows), instant - bank.t[rows])
+        estimate = predicted.estimate()
+        # a multiple-model filter's probabilities (IMM: predicted to the instant, as the state is)
+        probabilities = getattr(predicted, "mu", None) if self.model_names is not None else None
+        return instant_record(instant, rows, estimate.x, estimate.P, bank, self.config.output.full_covariance,
+                              probabilities)
+
+    @property
+    def model_names(self) -> tuple[str, ...] | None:
+        """Names of the filter's models when it is a multiple-model filter (for ``model_probs``)."""
+        return getattr(self.filter, "names", None) if self.filter.capabilities.multiple_model else None
