@@ -56,8 +56,6 @@ from scipy import stats
 from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
 from skytrack.filters.kalman import KalmanFilter
-from skytrack.filters.per_axis import RecorderSharing, row_scale
-from skytrack.filters.registry import register_filter
 from skytrack.models.motion import MotionModel
 
 VARIANTS = ("structured", "sage_husa_full", "covariance_matching")
@@ -66,6 +64,13 @@ VARIANTS = ("structured", "sage_husa_full", "covariance_matching")
 def fading_weight(b: float, adaptations) -> np.ndarray:
     """Sage-Husa weight ``d = (1 - b) / (1 - b^(k'+1))`` after ``k'`` adaptation steps (1 at k' = 0, -> 1 - b)."""
     return (1.0 - b) / (1.0 - b ** (np.asarray(adaptations, dtype=float) + 1.0))
+
+
+def _q_scale(context: dict | None, rows: int) -> np.ndarray:
+    """Per-row process-noise factor ``context["q_scale"]`` (1 when absent), as the Kalman filter reads it."""
+    if context is None or context.get("q_scale") is None:
+        return np.ones(rows)
+    return np.broadcast_to(np.asarray(context["q_scale"], dtype=float), (rows,)).copy()
 
 
 def psd_project(M: np.ndarray, floor: np.ndarray) -> np.ndarray:
@@ -139,7 +144,7 @@ class _EstimatedNoise:
 
 
 @dataclass(eq=False)
-class AdaptiveKalmanFilter(RecorderSharing, BatchFilter):
+class AdaptiveKalmanFilter(BatchFilter):
     """Kalman filter with real-time R̂, Q̂ estimation (§3.3 F), variant ``structured`` by default."""
 
     transition: MotionModel
@@ -212,7 +217,7 @@ class AdaptiveKalmanFilter(RecorderSharing, BatchFilter):
     def predict(self, state: AdaptiveState, dt, context: dict | None = None) -> AdaptiveState:
         rows = len(state)
         dt = np.broadcast_to(self.transition_dt(dt), (rows,))
-        scale = row_scale(context, rows)
+        scale = _q_scale(context, rows)
         if self.variant == "structured":
             factor = state.q_hat * scale
             g = self.kalman.predict_arrays(state.x, state.P, dt, factor)
@@ -285,6 +290,7 @@ class AdaptiveKalmanFilter(RecorderSharing, BatchFilter):
             chol = np.where(estimated[:, None, None], linalg.cholesky(S), innovation.chol)
             logdet = np.where(estimated, linalg.logdet_chol(chol), innovation.logdet)
             corrected = Innovation(nu, S, chol, innovation.d2, logdet, innovation.loglik, m, innovation.H, R_k, pred)
+        self.kalman.recorder = self.recorder  # its gains go to this filter's recorder
         updated, _ = self.kalman.update(pred, z, corrected)
         if self.variant == "covariance_matching":
             if estimated.any():
@@ -319,6 +325,12 @@ class AdaptiveKalmanFilter(RecorderSharing, BatchFilter):
             self.recorder.record("adaptive", np.arange(rows), R_hat=R_k, adapted=adapt, weight=d,
                                  nis=innovation.d2, **noise)
         return new, UpdateStats(innovation.d2 / m)
+
+
+# Imported after the definitions, and no sibling filter module is imported above: importing the
+# registry imports every filter module, and the adaptive + input-estimation module imports this
+# one, so its classes must exist even when this module is the first one imported.
+from skytrack.filters.registry import register_filter  # noqa: E402
 
 
 @register_filter("kalman-adaptive")

@@ -250,7 +250,7 @@ class PerAxisKalmanFilter(RecorderSharing, BatchFilter):
 
 
 # Imported here, after the shared pieces: importing the registry imports every filter module, and the
-# siblings that use the pieces above (transformed gain, pseudo-noise, adaptive, piecewise gain) must
+# siblings that use the pieces above (transformed gain, pseudo-noise, piecewise gain) must
 # find them defined even when this module is the one being imported first.
 from skytrack.filters.registry import register_filter  # noqa: E402
 
