@@ -48,8 +48,9 @@ FIRST_SCAN = 2
 NDIM = 3
 #: containment tolerance of the set estimate's quadratic form (E9: <= 1 + 1e-9)
 CONTAINMENT_TOLERANCE = 1e-9
-#: eta grid of the set-membership consistency test (logit-spaced, then refined)
+#: eta grid of the set-membership consistency test (logit-spaced, then golden-section refined)
 _ETA = 1.0 / (1.0 + np.exp(-np.linspace(-12.0, 12.0, 241)))
+_GOLDEN_STEPS = 60
 
 
 @dataclass(frozen=True)
@@ -166,26 +167,35 @@ def truth_state(case: Case, order: int) -> np.ndarray:
 
 
 def set_consistency(nu: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``max_eta nu^T (A/(1-eta) + B/eta)^-1 nu`` per row (§3.3 I), by whitening with B's Cholesky factor
-    and a grid plus one refinement over eta; ``A = H P^- H^T`` (shape matrix), ``B = R_b``."""
+    """``max_eta nu^T (A/(1-eta) + B/eta)^-1 nu`` per row (§3.3 I; ``A = H P^- H^T`` of the shape matrix,
+    ``B = R_b``).  Whitening by B's Cholesky factor and the eigenvectors of the whitened A make
+    ``delta(eta) = sum_i w_i / (lam_i/(1-eta) + 1/eta)``; its maximum is bracketed on a logit grid of
+    eta and refined by golden-section search."""
     C = np.linalg.cholesky(B)
     w = np.linalg.solve(C, nu[..., None])[..., 0]
     Ci = np.linalg.inv(C)
     lam, U = np.linalg.eigh(Ci @ A @ np.swapaxes(Ci, -1, -2))
+    lam = np.maximum(lam, 0.0)
     proj = np.einsum("rji,rj->ri", U, w) ** 2
 
-    def delta(eta):  # eta [G] -> [rows, G]
-        e = eta[None, :, None]
-        return np.sum(proj[:, None, :] / (np.maximum(lam, 0.0)[:, None, :] / (1.0 - e) + 1.0 / e), axis=-1)
+    def delta(eta):  # eta [rows, G] -> [rows, G]
+        e = eta[..., None]
+        return np.sum(proj[:, None, :] / (lam[:, None, :] / (1.0 - e) + 1.0 / e), axis=-1)
 
-    coarse = delta(_ETA)
+    coarse = delta(np.broadcast_to(_ETA, (len(nu), len(_ETA))))
     best = np.argmax(coarse, axis=1)
-    lo = _ETA[np.maximum(best - 1, 0)]
-    hi = _ETA[np.minimum(best + 1, len(_ETA) - 1)]
-    fine = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, 65)[None, :]
-    e = fine[:, :, None]
-    refined = np.sum(proj[:, None, :] / (np.maximum(lam, 0.0)[:, None, :] / (1.0 - e) + 1.0 / e), axis=-1)
-    return np.maximum(coarse.max(axis=1), refined.max(axis=1))
+    lo = _ETA[np.maximum(best - 1, 0)].copy()
+    hi = _ETA[np.minimum(best + 1, len(_ETA) - 1)].copy()
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    for _ in range(_GOLDEN_STEPS):
+        a = hi - ratio * (hi - lo)
+        b = lo + ratio * (hi - lo)
+        values = delta(np.stack([a, b], axis=1))
+        left = values[:, 0] >= values[:, 1]
+        hi = np.where(left, b, hi)
+        lo = np.where(left, lo, a)
+    refined = delta(((lo + hi) / 2.0)[:, None])[:, 0]
+    return np.maximum(coarse.max(axis=1), refined)
 
 
 def _loss(flag: np.ndarray, loss_scans: int) -> tuple[np.ndarray, np.ndarray]:

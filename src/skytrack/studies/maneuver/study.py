@@ -138,7 +138,9 @@ class StudyContext:
         unknown = sorted(set(config) - CONFIG_KEYS)
         if unknown:
             raise ValueError(f"--config: unknown key(s) {unknown}; known: {sorted(CONFIG_KEYS)}")
-        runs = self.options.runs or config.get("runs") or (self.definition.quick_runs if self.options.quick else self.definition.default_runs)
+        runs = self.options.runs if self.options.runs is not None else config.get("runs")
+        if runs is None:
+            runs = self.definition.quick_runs if self.options.quick else self.definition.default_runs
         if int(runs) != runs or runs < 1:
             raise ValueError(f"--runs must be a positive integer, got {runs}")
         self.runs = int(runs)
