@@ -308,3 +308,95 @@ def test_e3_ie_median_detection_delay_in_a_5g_turn():
                 delay[row], onset_error[row] = k - onset, abs(k - s - onset)
     assert np.median(delay) <= 6, np.sort(delay)
     assert np.median(onset_error) <= 3, np.sort(onset_error)
+
+
+# ---------------------------------------------------------------------------- §3.3 L / R14
+def turn_run(filt, runs, seed, onset=40, scans=80, sigma=25.0, order=3):
+    """Run ``filt`` on the 5 g turn (two-point start at scans 0, 1); position RMS per scan from scan 2."""
+    truth = turn_truth(scans, onset=onset)
+    z = truth[None] + np.stack([np.random.default_rng(g).normal(0.0, sigma, (scans, 3))
+                                for g in np.random.SeedSequence(seed).spawn(runs)])
+    r = sigma**2
+    x = np.zeros((runs, 3 * order))
+    P = np.zeros((runs, 3 * order, 3 * order))
+    block = np.array([[r, r / T, 0.0], [r / T, 2 * r / T**2, 0.0], [0.0, 0.0, 400.0]])[:order, :order]
+    for a in range(3):
+        x[:, order * a], x[:, order * a + 1] = z[:, 1, a], (z[:, 1, a] - z[:, 0, a]) / T
+        P[:, order * a: order * a + order, order * a: order * a + order] = block
+    model = ConvertedPositionModel(3, order)
+    R = np.broadcast_to(r * np.eye(3), (runs, 3, 3)).copy()
+    state = filt.initiate(x, P)
+    rms, states = [], []
+    for k in range(2, scans):
+        pred = filt.predict(state, np.full(runs, T))
+        state, _ = filt.update(pred, z[:, k], filt.innovate(pred, z[:, k], model, {"R": R}))
+        rms.append(np.sqrt(np.mean(np.sum((state.x[:, np.arange(3) * order] - truth[k]) ** 2, axis=1))))
+        states.append(state)
+    return np.array(rms), states
+
+
+def test_adaptive_ie_without_adaptation_is_ie():
+    """No adaptation step (warm-up longer than the run, q0 = 1, R^_0 = R): the composition is input
+    estimation with sigma_w = 1, detections included (rel 1e-9)."""
+    plain = InputEstimationFilter(3)
+    plain.recorder = ListRecorder()
+    combined = build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), warmup=10**6)
+    combined.recorder = ListRecorder()
+    _, ie_states = turn_run(plain, 8, seed=11)
+    _, aie_states = turn_run(combined, 8, seed=11)
+    assert len(plain.recorder.channel("detection")) >= 8
+    for a, b in zip(aie_states, ie_states):
+        np.testing.assert_allclose(a.x, b.x, rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(a.P, b.P, rtol=1e-9, atol=1e-6)
+        np.testing.assert_array_equal(a.live, b.live)
+    detections = [(tuple(r), tuple(v["scan"]), tuple(v["onset"])) for r, v in combined.recorder.channel("detection")]
+    assert detections == [(tuple(r), tuple(v["scan"]), tuple(v["onset"])) for r, v in plain.recorder.channel("detection")]
+
+
+@pytest.mark.parametrize("adapt_always", [False, True])
+def test_adaptation_is_suspended_for_n_w_scans_after_a_correction(adapt_always):
+    """Default: no adaptation on the N_w scans after a row's correction (nor on gate failures);
+    ``adapt_always=True``: the rows adapt on those scans too (warm-up 3)."""
+    window = 5
+    filt = build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), window=window, warmup=3,
+                        adapt_always=adapt_always)
+    filt.recorder = ListRecorder()
+    turn_run(filt, 20, seed=12)
+    adapted = np.array([v["adapted"] for _, v in filt.recorder.channel("adaptive")])  # [scan - 1, row]
+    after = np.zeros_like(adapted)
+    for rows, v in filt.recorder.channel("detection"):
+        for row, scan in zip(rows, v["scan"]):
+            after[scan: scan + window, row] = True  # the N_w updates following the correction at `scan`
+    assert after.sum() > 100
+    if adapt_always:
+        assert adapted[after].mean() > 0.9
+    else:
+        assert not adapted[after].any() and adapted[~after].any()
+
+
+def test_e6_adaptive_ie_peak_is_at_most_half_the_adaptive_peak():
+    """E6 assert on its scenario (60 s straight, then the 5 g turn; 60 runs, seed fixed): with the
+    mis-specified start R^_0 = 4 R, q^_0 = 25, the peak RMS within 15 s after the onset of adaptive +
+    IE is at most half that of the structured adaptive filter alone (which stops adapting in the turn
+    because the NIS gate rejects the manoeuvre innovations)."""
+    onset = 60
+    options = {"r0_scale": 4.0, "q0": 25.0}
+    alone, _ = turn_run(build_filter("kalman-adaptive", dwna(3, 1.0), **options), 60, seed=6, onset=onset, scans=100,
+                        order=2)
+    combined, _ = turn_run(build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), **options), 60, seed=6,
+                           onset=onset, scans=100)
+    window = slice(onset - 2, onset - 2 + 15)  # rms[i] is scan i + 2
+    assert combined[window].max() <= 0.5 * alone[window].max(), (combined[window].max(), alone[window].max())
+
+
+def test_adaptive_ie_options_and_errors():
+    filt = build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), window=10, p_fa=0.001, b=0.9, q0=25.0)
+    assert filt.threshold == pytest.approx(detection_threshold(3, 0.001, 10))
+    assert (filt.adaptive.b, filt.adaptive.q0, filt.adaptive.variant, filt.adaptive.gate) == (0.9, 25.0, "structured", True)
+    assert build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), adapt_always=True).adaptive.gate is False
+    with pytest.raises(ValueError, match="unknown options"):
+        build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), variant="sage_husa_full")
+    with pytest.raises(ValueError, match="3 states per axis"):
+        build_filter("adaptive-input-estimation", constant_velocity(3, 1.0))
+    with pytest.raises(ValueError, match="window"):
+        build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), window=0)

@@ -46,7 +46,6 @@ from scipy import stats
 
 from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
-from skytrack.filters.registry import register_filter
 from skytrack.filters.variable_dimension import (
     ORDER,
     acceleration_index,
@@ -56,7 +55,7 @@ from skytrack.filters.variable_dimension import (
     kalman_update,
     stack_axes,
 )
-from skytrack.models.motion import MotionModel
+from skytrack.models.motion import AxisModel, MotionModel
 
 MAX_WINDOW = 50
 
@@ -84,6 +83,35 @@ class InputEstimationState(GaussianState):
 
     def estimate(self) -> GaussianState:
         return GaussianState(self.x, self.P)
+
+
+def separate_input(P: np.ndarray, ndim: int) -> np.ndarray:
+    """A copy of ``P`` without the position/velocity-acceleration cross-covariance (the applied input
+    is treated as known by the position/velocity filter)."""
+    P = np.array(P, dtype=float)
+    acc = acceleration_index(ndim)
+    other = np.setdiff1d(np.arange(ORDER * ndim), acc)
+    P[:, acc[:, None], other[None, :]] = 0.0
+    P[:, other[:, None], acc[None, :]] = 0.0
+    return P
+
+
+@dataclass(frozen=True)
+class AppliedInputAxis(AxisModel):
+    """One axis of the IE quiescent model as a motion model: F = F_cv on position/velocity with the
+    applied input carried unchanged (identity on the acceleration entry), Q = DWNA with sigma_w.
+    Its F is the covariance transition; the mean adds ``G u_app`` (:meth:`InputEstimationFilter.transition`)."""
+
+    sigma_w: float = 1.0
+    order = ORDER
+
+    def F_batch(self, dt) -> np.ndarray:
+        F = embedded_axis_models(np.asarray(dt, dtype=float), self.sigma_w, 1.0)["F_cv"]
+        F[..., 2, 2] = 1.0
+        return F
+
+    def Q_batch(self, dt) -> np.ndarray:
+        return embedded_axis_models(np.asarray(dt, dtype=float), self.sigma_w, 1.0)["Q_cv"]
 
 
 def _push(buffer: np.ndarray, newest) -> np.ndarray:
@@ -143,16 +171,15 @@ class InputEstimationFilter(BatchFilter):
         """The given estimate with ``u_app`` = its acceleration; the position/velocity-acceleration
         cross-covariance is dropped (IE treats the applied input as known).  Empty bank but for the
         hypothesis of an onset on the coming transition."""
-        x, P = np.array(x, dtype=float), np.array(P, dtype=float)
-        acc = acceleration_index(self.ndim)
-        other = np.setdiff1d(np.arange(self.state_dim), acc)
-        P[:, acc[:, None], other[None, :]] = 0.0
-        P[:, other[:, None], acc[None, :]] = 0.0
-        count, n, w, nu = len(x), self.state_dim, self.window, self.n_u
+        x, P = np.array(x, dtype=float), separate_input(P, self.ndim)
+        return InputEstimationState(x, P, *self.empty_bank(len(x)), np.zeros(len(x), np.int64))
+
+    def empty_bank(self, count: int):
+        """``(bias, information, score, live)`` holding only the hypothesis of an onset on the coming transition."""
+        n, w, nu = self.state_dim, self.window, self.n_u
         live = np.zeros((count, w), bool)
         live[:, 0] = True
-        return InputEstimationState(x, P, np.zeros((count, w, n, nu)), np.zeros((count, w, nu, nu)),
-                                    np.zeros((count, w, nu)), live, np.zeros(count, np.int64))
+        return np.zeros((count, w, n, nu)), np.zeros((count, w, nu, nu)), np.zeros((count, w, nu)), live
 
     # -------------------------------------------------------------------- predict
     def transition(self, dt: np.ndarray):
@@ -160,7 +187,7 @@ class InputEstimationFilter(BatchFilter):
         covariance transition (F_cv on position/velocity, identity on the applied input), the
         DWNA Q and the input matrix ``[K, n, n_u]``."""
         models = embedded_axis_models(dt, self.sigma_w, 1.0)
-        F_cov = models["F_cv"].copy()
+        F_cov = models["F_cv"]
         F_cov[..., 2, 2] = 1.0
         F_mean = F_cov.copy()
         F_mean[..., :, 2] += models["G"]
@@ -175,9 +202,8 @@ class InputEstimationFilter(BatchFilter):
         F_mean, F_cov, Q, G_u = self.transition(dt)
         x = linalg.matvec(F_mean, state.x)
         P = linalg.sandwich(F_cov, state.P, Q)
-        bias = linalg.matmul(F_cov[:, None], state.bias) + G_u[:, None]
-        bias = np.where(state.live[:, :, None, None], bias, 0.0)
-        return InputEstimationState(x, P, bias, state.information, state.score, state.live, state.scan)
+        return InputEstimationState(x, P, self.bank_predict(state.bias, state.live, F_cov, G_u), state.information,
+                                    state.score, state.live, state.scan)
 
     # -------------------------------------------------------------------- innovate / update
     def innovate(self, state: InputEstimationState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
@@ -186,25 +212,37 @@ class InputEstimationFilter(BatchFilter):
     def update(self, state: InputEstimationState, z: np.ndarray,
                innovation: Innovation) -> tuple[InputEstimationState, UpdateStats]:
         pred: InputEstimationState = innovation.predicted
-        H, nu, L = innovation.H, innovation.nu, innovation.chol
-        x, P, _, A = kalman_update(pred.x, pred.P, H, innovation.R, nu, L)
-        live = pred.live
-        rows = len(x)
+        x, P, _, A = kalman_update(pred.x, pred.P, innovation.H, innovation.R, innovation.nu, innovation.chol)
         scan = pred.scan + 1
+        bank = self.bank_update(pred.bias, pred.information, pred.score, pred.live, A, innovation)
+        x, P, bank, _ = self.detect_and_correct(x, P, bank, scan)
+        return InputEstimationState(x, P, *bank, scan), UpdateStats(innovation.d2 / innovation.m)
 
-        # the bank: every slot is processed (dead ones masked) so the cost is affine in N_w
-        B = pred.bias
+    # -------------------------------------------------------------------- the bank (shared with §3.3 L)
+    def bank_predict(self, bias: np.ndarray, live: np.ndarray, F_cov: np.ndarray, G_u: np.ndarray) -> np.ndarray:
+        """``B = F M + G`` for every slot (dead slots stay zero)."""
+        B = linalg.matmul(F_cov[:, None], bias) + G_u[:, None]
+        return np.where(live[:, :, None, None], B, 0.0)
+
+    def bank_update(self, B, information, score, live, A, innovation: Innovation):
+        """``(M, J, g, live)`` after the scan: ``M = (I - K H) B``, ``Psi = H B``, ``J += Psi^T S^-1 Psi``,
+        ``g += Psi^T S^-1 nu``, with ``A = I - K H`` and S (its Cholesky factor) of the gain used.
+        Every slot is processed (dead ones masked), so the cost is affine in N_w."""
+        H, L, nu = innovation.H, innovation.chol, innovation.nu
         bias = linalg.matmul(A[:, None], B)
         Psi = linalg.matmul(H[:, None], B)
         weighted = linalg.cho_solve(L[:, None], Psi)  # S^-1 Psi
-        weighted_t = np.swapaxes(weighted, -1, -2)
-        information = pred.information + linalg.matmul(np.swapaxes(Psi, -1, -2), weighted)
-        score = pred.score + linalg.matvec(weighted_t, nu[:, None])
+        information = information + linalg.matmul(np.swapaxes(Psi, -1, -2), weighted)
+        score = score + linalg.matvec(np.swapaxes(weighted, -1, -2), nu[:, None])
         mask = live[:, :, None]
-        bias = np.where(mask[..., None], bias, 0.0)
-        information = np.where(mask[..., None], information, 0.0)
-        score = np.where(mask, score, 0.0)
+        return (np.where(mask[..., None], bias, 0.0), np.where(mask[..., None], information, 0.0),
+                np.where(mask, score, 0.0), live)
 
+    def detect_and_correct(self, x, P, bank, scan):
+        """Detection over the updated bank, correction of the detecting rows, bank reset, and the new
+        hypothesis of this scan: ``(x, P, (bias, information, score, live) for the next scan, detect)``."""
+        bias, information, score, live = bank
+        rows = len(x)
         detect = np.zeros(rows, bool)
         if np.isfinite(self.threshold) or self.recorder.active:
             delta_u, ell, input_cov = self._hypotheses(information, score, live)
@@ -228,12 +266,11 @@ class InputEstimationFilter(BatchFilter):
             live = live.copy()
             live[hit] = False
             self.recorder.record("detection", hit, scan=scan[hit], onset=s_hat + 1, delta_u=du, ell=best[hit])
-
         # one new hypothesis (onset on the coming transition) per scan; the oldest drops out
-        new = InputEstimationState(x, P, _push(np.where(live[:, :, None, None], bias, 0.0), 0.0),
-                                   _push(np.where(live[:, :, None, None], information, 0.0), 0.0),
-                                   _push(np.where(live[:, :, None], score, 0.0), 0.0), _push(live, True), scan)
-        return new, UpdateStats(innovation.d2 / innovation.m)
+        keep = live[:, :, None]
+        bank = (_push(np.where(keep[..., None], bias, 0.0), 0.0), _push(np.where(keep[..., None], information, 0.0), 0.0),
+                _push(np.where(keep, score, 0.0), 0.0), _push(live, True))
+        return x, P, bank, detect
 
     def _hypotheses(self, information, score, live):
         """``(du[K, N_w, n_u], l[K, N_w], L[K, N_w, n_u, n_u])``; ``l = -inf`` where a slot is empty or
@@ -246,6 +283,11 @@ class InputEstimationFilter(BatchFilter):
         input_cov = linalg.cho_solve(chol, np.broadcast_to(np.eye(nu), J.shape))
         ell = linalg.matvec(score[..., None, :], delta_u)[..., 0]
         return delta_u, np.where(usable, ell, -np.inf), input_cov
+
+
+# Imported here, after the shared pieces: importing the registry imports every filter module, and the
+# sibling modules of spec 004 §3.3 J-L import these pieces whichever module loads first.
+from skytrack.filters.registry import register_filter  # noqa: E402
 
 
 @register_filter("input-estimation")

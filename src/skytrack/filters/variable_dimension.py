@@ -56,7 +56,6 @@ from scipy import stats
 from skytrack.core import linalg
 from skytrack.filters.alpha_beta_gains import detector_threshold, detector_window
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
-from skytrack.filters.registry import register_filter
 from skytrack.models.embedding import EmbeddedAxis
 from skytrack.models.motion import MotionModel, block_diag_batch
 from skytrack.models.polynomial import PolynomialAxis
@@ -383,6 +382,11 @@ class VariableDimensionFilter(BatchFilter):
             if self.count_refiltered:
                 significance[active, age] = acceleration_significance(x[active], P[active])
         return x, P, significance, w.astype(np.int64)
+
+
+# Imported here, after the shared pieces: importing the registry imports every filter module, and the
+# sibling modules of spec 004 §3.3 J-L import these pieces whichever module loads first.
+from skytrack.filters.registry import register_filter  # noqa: E402
 
 
 @register_filter("variable-dimension")

@@ -1,0 +1,187 @@
+"""Adaptive Q/R + input estimation, spec 004 §3.3 L (the paper's combined algorithm), requirement R14.
+
+Composition of two families, no new filter equations:
+
+* the quiescent filter is the ``structured`` adaptive Kalman filter of §3.3 F
+  (:class:`~skytrack.filters.adaptive.AdaptiveKalmanFilter`, R8) on the IE quiescent model
+  (:class:`~skytrack.filters.input_estimation.AppliedInputAxis`: CV/DWNA on position and velocity,
+  the applied input carried in the acceleration entries, ``Q_unit`` the sigma_w = 1 DWNA model,
+  ``Q = q^ Q_unit``); its prediction is completed with ``G u_app``;
+* the onset bank, detection and correction are those of §3.3 K
+  (:class:`~skytrack.filters.input_estimation.InputEstimationFilter`), run with the gain, S and R^
+  the adaptive filter used on the scan.
+
+Adaptation is suspended for N_w scans after every IE correction and on scans failing the adaptive
+filter's NIS gate (default); ``adapt_always=True`` turns both off (the adaptive filter adapts on
+every scan after its warm-up).  The suspension goes through the adaptive filter's own NIS gate: a
+suspended scan is handed to it with ``d2 = inf``, so it updates with its current R^, q^ and does not
+adapt (its ``"adaptive"`` recorder channel then shows ``nis = inf`` for those rows).
+
+Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``)
+and of the structured adaptive filter (``b``, ``warmup``, ``gate_probability``, ``r_lo``, ``r_hi``,
+``q_lo``, ``q_hi``, ``q0``, ``r0_scale``, ``fixed_weight``).  Recorder channels: the IE channels
+(``"detection"``, ``"bank"``) and the adaptive filter's (``"adaptive"``, ``"gain"``).  Like the
+adaptive filter, the gain follows R^ rather than the model's R after a row's first update
+(``gain_depends_on_r`` is False).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from skytrack.core import linalg
+from skytrack.filters import adaptive as adaptive_family
+from skytrack.filters import input_estimation as ie_family
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, Recorder, UpdateStats
+from skytrack.filters.variable_dimension import ORDER, acceleration_index, check_order3, position_selector
+from skytrack.models.motion import MotionModel
+
+#: options of the structured adaptive filter that this family passes on
+ADAPTIVE_OPTIONS = ("b", "warmup", "gate_probability", "r_lo", "r_hi", "q_lo", "q_hi", "q0", "r0_scale",
+                    "fixed_weight")
+
+
+@dataclass
+class AdaptiveInputEstimationState(GaussianState):
+    """The fields of the structured adaptive state (:class:`~skytrack.filters.adaptive.StructuredAdaptiveState`:
+    R^, R_nom, Q_acc, ``scans`` = updates so far, adaptations, q^) plus the IE bank (``bias``,
+    ``information``, ``score``, ``live`` as in :class:`~skytrack.filters.input_estimation.InputEstimationState`)
+    and ``suspended[N]``, the scans of adaptation suspension left after a correction.
+
+    The adaptive fields are declared here rather than inherited, so that this module imports its two
+    sibling families lazily (importing the filter registry imports every filter module, in any order).
+    """
+
+    R_hat: np.ndarray
+    R_nom: np.ndarray
+    Q_acc: np.ndarray
+    scans: np.ndarray
+    adaptations: np.ndarray
+    q_hat: np.ndarray
+    bias: np.ndarray
+    information: np.ndarray
+    score: np.ndarray
+    live: np.ndarray
+    suspended: np.ndarray
+
+    def adaptive_part(self):
+        """The structured adaptive filter's state over the same arrays (no copies)."""
+        base = adaptive_family.StructuredAdaptiveState
+        return base(**{f.name: getattr(self, f.name) for f in dataclasses.fields(base)})
+
+    def with_adaptive(self, part, **bank) -> "AdaptiveInputEstimationState":
+        """This state with the adaptive fields of ``part`` and the given bank fields replaced."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields.update({f.name: getattr(part, f.name) for f in dataclasses.fields(part)})
+        fields.update(bank)
+        return AdaptiveInputEstimationState(**fields)
+
+
+@dataclass(eq=False)
+class AdaptiveInputEstimationFilter(BatchFilter):
+    """Structured adaptive KF (§3.3 F) as the quiescent filter of input estimation (§3.3 K): §3.3 L, R14."""
+
+    ndim: int
+    window: int = 20
+    p_fa: float = 0.01
+    bonferroni: bool = True
+    threshold: float | None = None
+    input_axes: int | None = None
+    adapt_always: bool = False
+    adaptive_options: dict = field(default_factory=dict)
+    compiled: bool = True
+
+    kind = "adaptive-input-estimation"
+    capabilities = Capabilities(gain_depends_on_r=False)
+    state_type = AdaptiveInputEstimationState
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.adaptive_options) - set(ADAPTIVE_OPTIONS))
+        if unknown:
+            raise ValueError(f"adaptive input estimation: unknown options {unknown}; the adaptive filter's are "
+                             f"{', '.join(ADAPTIVE_OPTIONS)} (the variant is always 'structured')")
+        self.ie = ie_family.InputEstimationFilter(self.ndim, 1.0, self.window, self.p_fa, self.bonferroni, self.threshold,
+                                        self.input_axes)
+        self.threshold = self.ie.threshold
+        self.adaptive = adaptive_family.AdaptiveKalmanFilter(
+            MotionModel([ie_family.AppliedInputAxis(1.0)] * self.ndim), variant="structured",
+                                             gate=not self.adapt_always, compiled=self.compiled,
+                                             **self.adaptive_options)
+
+    @property
+    def recorder(self) -> Recorder:
+        return self.__dict__.get("_recorder", BatchFilter.recorder)
+
+    @recorder.setter
+    def recorder(self, value: Recorder) -> None:
+        self.__dict__["_recorder"] = value
+        if "ie" in self.__dict__:
+            self.ie.recorder = value
+            self.adaptive.recorder = value
+
+    @property
+    def state_dim(self) -> int:
+        return ORDER * self.ndim
+
+    # -------------------------------------------------------------------- steps
+    def initiate(self, x: np.ndarray, P: np.ndarray) -> AdaptiveInputEstimationState:
+        """As input estimation: ``u_app`` = the initial acceleration, its cross-covariance dropped."""
+        base = self.adaptive.initiate(np.array(x, dtype=float), ie_family.separate_input(P, self.ndim))
+        count = len(base)
+        return AdaptiveInputEstimationState(**base.to_arrays(), **dict(zip(
+            ("bias", "information", "score", "live"), self.ie.empty_bank(count))), suspended=np.zeros(count, np.int64))
+
+    def predict(self, state: AdaptiveInputEstimationState, dt, context: dict | None = None) -> AdaptiveInputEstimationState:
+        dt = np.broadcast_to(self.transition_dt(dt), (len(state),)).astype(float)
+        part = self.adaptive.predict(state.adaptive_part(), dt, context)  # F_cov x, F_cov P F_cov^T + q^ Q_unit
+        _, F_cov, _, G_u = self.ie.transition(dt)
+        applied = state.x[:, acceleration_index(self.ndim)[: self.ie.n_u]]
+        part.x = part.x + linalg.matvec(G_u, applied)
+        return state.with_adaptive(part, bias=self.ie.bank_predict(state.bias, state.live, F_cov, G_u))
+
+    def innovate(self, state: AdaptiveInputEstimationState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
+        innovation = self.adaptive.innovate(state.adaptive_part(), z, model, context)
+        innovation.predicted = state
+        H = innovation.H
+        if not np.array_equal(H, np.broadcast_to(position_selector(self.ndim), H.shape)):
+            raise ValueError(f"{self.kind}: the measurement must be the {self.ndim} positions (H selecting them)")
+        return innovation
+
+    def update(self, state: AdaptiveInputEstimationState, z: np.ndarray,
+               innovation: Innovation) -> tuple[AdaptiveInputEstimationState, UpdateStats]:
+        pred: AdaptiveInputEstimationState = innovation.predicted
+        handed = innovation
+        suspended = pred.suspended > 0
+        if not self.adapt_always and suspended.any():
+            handed = dataclasses.replace(innovation, d2=np.where(suspended, np.inf, innovation.d2))
+        handed = dataclasses.replace(handed, predicted=pred.adaptive_part())
+        new, _ = self.adaptive.update(handed.predicted, z, handed)
+        # the gain the adaptive filter used: S = H P^- H^T + R^ of this scan
+        H = innovation.H
+        S = innovation.S - innovation.R + new.R_hat
+        L = linalg.cholesky(S)
+        PHt = linalg.matmul(pred.P, np.swapaxes(H, -1, -2))
+        K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
+        A = np.eye(self.state_dim) - linalg.matmul(K, H)
+        used = dataclasses.replace(innovation, S=S, chol=L, R=new.R_hat)
+        bank = self.ie.bank_update(pred.bias, pred.information, pred.score, pred.live, A, used)
+        x, P, bank, detect = self.ie.detect_and_correct(new.x, new.P, bank, new.scans)
+        new.x, new.P = x, P
+        suspended = np.where(detect, self.window, np.maximum(pred.suspended - 1, 0))
+        return pred.with_adaptive(new, **dict(zip(("bias", "information", "score", "live"), bank)),
+                                  suspended=suspended), UpdateStats(innovation.d2 / innovation.m)
+
+
+from skytrack.filters.registry import register_filter  # noqa: E402  (after the pieces, as the siblings)
+
+
+@register_filter("adaptive-input-estimation")
+def _adaptive_input_estimation(motion: MotionModel, compiled: bool = True, window: int = 20, p_fa: float = 0.01,
+                               bonferroni: bool = True, threshold: float | None = None, input_axes: int | None = None,
+                               adapt_always: bool = False, **adaptive_options) -> AdaptiveInputEstimationFilter:
+    """§3.3 L on the axes of an order-3 ``motion`` (only its number of axes is used)."""
+    return AdaptiveInputEstimationFilter(check_order3(motion, "adaptive-input-estimation"), window, p_fa, bonferroni,
+                                         threshold, input_axes, adapt_always, adaptive_options, compiled)
