@@ -19,7 +19,7 @@ from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.per_axis import PerAxisKalmanFilter
 from skytrack.filters.piecewise_gain import PiecewiseGainFilter
 from skytrack.filters.pseudo_noise import PseudoNoiseKalmanFilter
-from skytrack.filters.registry import build_filter
+from skytrack.filters.registry import FILTERS, build_filter, register_filter
 from skytrack.filters.transformed_gain import TransformedGainFilter
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.motion import MotionModel, SingerAxisModel, constant_velocity, singer
@@ -184,6 +184,26 @@ def test_piecewise_offline_schedule_recomputed_on_one_percent_change():
         exact, _ = run("joseph", factor, step)
         assert_rel(changed.P, exact.P, 1e-9, f"P {factor} {step}")
         assert_rel(changed.x, exact.x, 1e-9, f"x {factor} {step}")
+
+
+def test_piecewise_offline_mode_passes_the_conformance_properties():
+    """The registered kind's conformance run uses the default (joseph) mode; the offline mode, under a
+    temporary kind, satisfies the same properties: zero-step identity, batch = rows, same seed same
+    output, and the matched-model NEES band of the conformance suite (cv2: chi2 99 % band of 200 x 4)."""
+    import test_filter_conformance as conformance  # tests/filters is on sys.path (pytest's rootdir import)
+
+    kind = "test-pcg-offline"
+    register_filter(kind)(lambda motion, compiled=True: PiecewiseGainFilter(motion, N=3, covariance="offline",
+                                                                            compiled=compiled))
+    try:
+        assert conformance.check_zero_dt_identity(kind, "singer3", True) <= 1e-12
+        assert conformance.check_batch_equals_rows(kind, "cv2", False) <= 1e-12
+        first, second = conformance.check_same_seed_same_output(kind, "singer3", True)
+        assert np.array_equal(first, second)
+        value, n = conformance.check_nees(kind, "cv2", True)
+        assert 3.504 <= value <= 4.534 and n == 4
+    finally:
+        FILTERS.pop(kind, None)
 
 
 def test_piecewise_hold_scans_skip_the_gain_computation():

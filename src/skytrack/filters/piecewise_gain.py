@@ -46,6 +46,8 @@ SCHEDULE_TOLERANCE = 0.01
 #: relative change of the recomputed gain below which the schedule is periodic (spec: 1e-9)
 GAIN_CONVERGENCE = 1e-9
 SCHEDULE_FIELDS = ("P_pred", "S", "chol", "logdet", "K", "P_post")
+#: ``sched_T`` of a row without a valid schedule (steps are >= 0; a schedule may have T = 0)
+NO_SCHEDULE = -1.0
 
 
 @dataclass
@@ -122,9 +124,9 @@ class PiecewiseGainFilter(RecorderSharing, BatchFilter):
         scans = np.zeros(rows, np.int64)
         if self.covariance == "joseph":
             return PiecewiseGainState(x, P, K, scans)
-        nan = np.full(rows, np.nan)
+        none = np.full(rows, NO_SCHEDULE)
         return OfflineGainState(x, P, K, scans, np.zeros(rows), np.ones(rows), P.copy(), K.copy(), scans.copy(),
-                                nan.copy(), np.full((rows, mz, mz), np.nan), nan.copy(), np.zeros((rows, mz, n)))
+                                none, np.zeros((rows, mz, mz)), np.ones(rows), np.zeros((rows, mz, n)))
 
     # -------------------------------------------------------------------- predict
     def predict(self, state: PiecewiseGainState, dt, context: dict | None = None) -> PiecewiseGainState:
@@ -145,7 +147,7 @@ class PiecewiseGainFilter(RecorderSharing, BatchFilter):
         x = linalg.matvec(F, state.x.reshape(rows, ndim, -1)).reshape(rows, -1)
         moved = dt != 0.0
         scale = np.where(moved, scale, state.scale)
-        on_schedule = moved & np.isfinite(state.sched_T) \
+        on_schedule = moved & (state.sched_T != NO_SCHEDULE) \
             & (np.abs(elapsed - state.sched_T) <= SCHEDULE_TOLERANCE * state.sched_T) \
             & (np.abs(scale - state.sched_scale) <= SCHEDULE_TOLERANCE * state.sched_scale)
         online = moved & ~on_schedule
@@ -153,7 +155,7 @@ class PiecewiseGainFilter(RecorderSharing, BatchFilter):
         sched_T = state.sched_T.copy()
         if online.any():
             P[online] = self.kalman.predict_arrays(state.x[online], state.P[online], dt[online], scale[online]).P
-            sched_T[online] = np.nan  # the next innovation starts a schedule from here
+            sched_T[online] = NO_SCHEDULE  # the next innovation starts a schedule from here
         if on_schedule.any():
             P[on_schedule] = self._lookup(state, on_schedule, state.scans[on_schedule] + 1)["P_pred"]
         new = state.copy()
@@ -176,7 +178,7 @@ class PiecewiseGainFilter(RecorderSharing, BatchFilter):
             raise ValueError("non-finite measurement or innovation")
         self._check_dimension(H)
         m = model.measured(context)
-        stale = ~np.isfinite(state.sched_T) | (_relative_change(R, state.sched_R) > SCHEDULE_TOLERANCE) \
+        stale = (state.sched_T == NO_SCHEDULE) | (_relative_change(R, state.sched_R) > SCHEDULE_TOLERANCE) \
             | np.any(H != state.sched_H, axis=(1, 2))
         predicted = state
         if stale.any():
