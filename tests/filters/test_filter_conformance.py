@@ -208,7 +208,11 @@ def check_huge_r_is_noop(kind, motion, compiled):
     # the same plots with their own R do move it (the property is not vacuous)
     z, R = case.measurement(rng, pred, 3.0)
     moved = case.filt.update(pred, z, case.filt.innovate(pred, z, case.model, {"R": R}))[0].estimate()
-    assert np.max(np.abs(moved.x - before.x) / sd) > 0.1
+    # a set-membership filter's set may be far wider than the plot noise: then its centre moves
+    # little while the set shrinks by orders of magnitude, so a move of x or of P counts
+    moved_x = np.max(np.abs(moved.x - before.x) / sd)
+    moved_P = np.max(np.abs(moved.P - before.P) / (sd[:, :, None] * sd[:, None, :]))
+    assert moved_x > 0.1 or moved_P > 0.1
     return float(np.max(np.abs(after.x - before.x) / sd))
 
 
@@ -482,7 +486,8 @@ def test_reference_path_counts_shape_implied_multiply_adds(kind, motion):
     z, R = case.measurement(rng, pred)
     with linalg.counting() as ops:
         case.filt.update(pred, z, case.filt.innovate(pred, z, case.model, {"R": R}))
-    assert ops.madds > 0 and ops.madds == sum(ops.by_name.values())
+    # counts are floats (R22: a Cholesky costs n^3/3), so the total depends on summation order
+    assert ops.madds > 0 and ops.madds == pytest.approx(sum(ops.by_name.values()), rel=1e-12)
     if kind == "kalman":
         k, n, m = 4, case.n, case.ndim
         expected = k * (m * n * n + m * n * m + m**3 / 3 + m * m + m)  # innovate: sandwich, cholesky, d2 (R22)
