@@ -99,7 +99,8 @@ def test_tv15_bank_at_scan_24_with_detection_disabled():
 
 def test_tv15_correction_at_scan_24():
     """With a threshold between max l at scan 23 and l_4 at 24, the filter detects at 24 with s^ = 4,
-    du = 30, and the corrected state is the truth (5040, 320); P gains M L M^T; u_app = 30."""
+    du = 30, and the corrected state is the truth (5040, 320); P gains M L M^T; u_app = 30 with
+    covariance L + sigma_w^2."""
     x0, P0, _, _ = tv15_start()
     filt = InputEstimationFilter(1, window=10, threshold=247.0)
     states, _ = run_1d(filt, tv15_truth(24), x0, P0)
@@ -113,7 +114,7 @@ def test_tv15_correction_at_scan_24():
     disabled, _ = run_1d(InputEstimationFilter(1, window=10, threshold=np.inf), tv15_truth(24), x0, P0)
     M, L = np.array([3.36218112, 3.12078336]), 3.636582679
     np.testing.assert_allclose(states[-1].P[0, :2, :2], disabled[-1].P[0, :2, :2] + L * np.outer(M, M), rtol=1e-9)
-    assert states[-1].P[0, 2, 2] == pytest.approx(L, rel=1e-9)
+    assert states[-1].P[0, 2, 2] == pytest.approx(L + 1.0, rel=1e-9)  # u_app's L plus sigma_w^2
     assert not states[-1].live[0, 1:].any() and states[-1].live[0, 0]  # cleared, then the new hypothesis
 
 

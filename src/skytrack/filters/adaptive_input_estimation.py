@@ -17,6 +17,9 @@ every scan after its warm-up).  The suspension goes through the adaptive filter'
 suspended scan is handed to it with ``d2 = inf``, so it updates with its current R^, q^ and does not
 adapt (its ``"adaptive"`` recorder channel then shows ``nis = inf`` for those rows).
 
+The acceleration block of the covariance follows input estimation's convention with the current
+``q^`` as the DWNA variance: ``U + q^ I`` (U = 0 until the first correction, then ``L_s``).
+
 Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``)
 and of the structured adaptive filter (``b``, ``warmup``, ``gate_probability``, ``r_lo``, ``r_hi``,
 ``q_lo``, ``q_hi``, ``q0``, ``r0_scale``, ``fixed_weight``).  Recorder channels: the IE channels
@@ -129,7 +132,8 @@ class AdaptiveInputEstimationFilter(BatchFilter):
     # -------------------------------------------------------------------- steps
     def initiate(self, x: np.ndarray, P: np.ndarray) -> AdaptiveInputEstimationState:
         """As input estimation: ``u_app`` = the initial acceleration, its cross-covariance dropped."""
-        base = self.adaptive.initiate(np.array(x, dtype=float), ie_family.separate_input(P, self.ndim))
+        q0 = self.adaptive.q0
+        base = self.adaptive.initiate(np.array(x, dtype=float), ie_family.known_input_covariance(P, self.ndim, q0))
         count = len(base)
         return AdaptiveInputEstimationState(**base.to_arrays(), **dict(zip(
             ("bias", "information", "score", "live"), self.ie.empty_bank(count))), suspended=np.zeros(count, np.int64))
@@ -168,7 +172,11 @@ class AdaptiveInputEstimationFilter(BatchFilter):
         A = np.eye(self.state_dim) - linalg.matmul(K, H)
         used = dataclasses.replace(innovation, S=S, chol=L, R=new.R_hat)
         bank = self.ie.bank_update(pred.bias, pred.information, pred.score, pred.live, A, used)
-        x, P, bank, detect = self.ie.detect_and_correct(new.x, new.P, bank, new.scans)
+        # the acceleration block is U + q^ I (input_estimation's docstring with sigma_w^2 = q^)
+        acc = acceleration_index(self.ndim)
+        P = new.P.copy()
+        P[:, acc, acc] += (new.q_hat - pred.q_hat)[:, None]
+        x, P, bank, detect = self.ie.detect_and_correct(new.x, P, bank, new.scans, new.q_hat)
         new.x, new.P = x, P
         suspended = np.where(detect, self.window, np.maximum(pred.suspended - 1, 0))
         return pred.with_adaptive(new, **dict(zip(("bias", "information", "score", "live"), bank)),

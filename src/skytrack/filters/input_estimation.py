@@ -7,10 +7,13 @@ u (``n_u`` = the number of axes, or the leading ``input_axes`` of them, e.g. 2 f
 study).  The applied input ``u_app`` is kept in the acceleration entries of the state and used
 in prediction, ``x^- = F_cv x + G u_app`` (which is the CA transition of the mean); the
 covariance is propagated with ``F_cv`` on position and velocity and leaves the acceleration
-block alone, because IE treats ``u_app`` as known.  The acceleration block of P holds the
-covariance of ``u_app``: the initial estimate's until the first correction, then ``L_s`` of the
-last correction; it is uncorrelated with position and velocity (the initial cross-covariance is
-dropped at ``initiate``) and never enters the position/velocity numbers.
+block alone, because IE treats ``u_app`` as known.  The acceleration block of P says what the
+model believes of the acceleration over the coming interval: ``u_app`` plus the DWNA acceleration,
+covariance ``U + sigma_w^2 I`` with ``U = 0`` until the first correction (IE starts from a known
+input, the initial estimate's acceleration; its covariance and cross-covariance are dropped at
+``initiate``) and ``U = L_s`` of the last correction after it.  It is uncorrelated with position
+and velocity and never enters their numbers; on the filter's own model (DWNA truth, onsets of
+constant inputs) it makes the 9-state NEES consistent, like the VD filter's quiescent convention.
 
 Onset bank (per row, arrays ``[rows, N_w, ...]``): hypothesis s says an extra constant input
 started on the transition ``k-s -> k-s+1``.  One hypothesis is created after every update
@@ -85,14 +88,15 @@ class InputEstimationState(GaussianState):
         return GaussianState(self.x, self.P)
 
 
-def separate_input(P: np.ndarray, ndim: int) -> np.ndarray:
-    """A copy of ``P`` without the position/velocity-acceleration cross-covariance (the applied input
-    is treated as known by the position/velocity filter)."""
+def known_input_covariance(P: np.ndarray, ndim: int, variance) -> np.ndarray:
+    """A copy of ``P`` in IE's form: no position/velocity-acceleration cross-covariance (the applied
+    input is known to the position/velocity filter) and the acceleration block ``variance I``
+    (the quiescent acceleration variance; ``variance`` scalar or per row)."""
     P = np.array(P, dtype=float)
     acc = acceleration_index(ndim)
-    other = np.setdiff1d(np.arange(ORDER * ndim), acc)
-    P[:, acc[:, None], other[None, :]] = 0.0
-    P[:, other[:, None], acc[None, :]] = 0.0
+    P[:, acc, :] = 0.0
+    P[:, :, acc] = 0.0
+    P[:, acc, acc] = np.asarray(variance, dtype=float).reshape(-1, 1)
     return P
 
 
@@ -168,10 +172,10 @@ class InputEstimationFilter(BatchFilter):
 
     # -------------------------------------------------------------------- initiate
     def initiate(self, x: np.ndarray, P: np.ndarray) -> InputEstimationState:
-        """The given estimate with ``u_app`` = its acceleration; the position/velocity-acceleration
-        cross-covariance is dropped (IE treats the applied input as known).  Empty bank but for the
-        hypothesis of an onset on the coming transition."""
-        x, P = np.array(x, dtype=float), separate_input(P, self.ndim)
+        """The given estimate with ``u_app`` = its acceleration (known, as in §3.3 K: no cross-covariance,
+        acceleration covariance ``sigma_w^2 I``).  Empty bank but for the hypothesis of an onset on
+        the coming transition."""
+        x, P = np.array(x, dtype=float), known_input_covariance(P, self.ndim, self.sigma_w**2)
         return InputEstimationState(x, P, *self.empty_bank(len(x)), np.zeros(len(x), np.int64))
 
     def empty_bank(self, count: int):
@@ -215,7 +219,7 @@ class InputEstimationFilter(BatchFilter):
         x, P, _, A = kalman_update(pred.x, pred.P, innovation.H, innovation.R, innovation.nu, innovation.chol)
         scan = pred.scan + 1
         bank = self.bank_update(pred.bias, pred.information, pred.score, pred.live, A, innovation)
-        x, P, bank, _ = self.detect_and_correct(x, P, bank, scan)
+        x, P, bank, _ = self.detect_and_correct(x, P, bank, scan, self.sigma_w**2)
         return InputEstimationState(x, P, *bank, scan), UpdateStats(innovation.d2 / innovation.m)
 
     # -------------------------------------------------------------------- the bank (shared with §3.3 L)
@@ -238,9 +242,10 @@ class InputEstimationFilter(BatchFilter):
         return (np.where(mask[..., None], bias, 0.0), np.where(mask[..., None], information, 0.0),
                 np.where(mask, score, 0.0), live)
 
-    def detect_and_correct(self, x, P, bank, scan):
-        """Detection over the updated bank, correction of the detecting rows, bank reset, and the new
-        hypothesis of this scan: ``(x, P, (bias, information, score, live) for the next scan, detect)``."""
+    def detect_and_correct(self, x, P, bank, scan, quiescent_variance):
+        """Detection over the updated bank, correction of the detecting rows (their acceleration block
+        becomes ``L_s + quiescent_variance I``; scalar or per row), bank reset, and the new hypothesis
+        of this scan: ``(x, P, (bias, information, score, live) for the next scan, detect)``."""
         bias, information, score, live = bank
         rows = len(x)
         detect = np.zeros(rows, bool)
@@ -262,7 +267,8 @@ class InputEstimationFilter(BatchFilter):
             acc = acceleration_index(self.ndim)[: self.n_u]
             x[hit[:, None], acc[None, :]] += du
             P[hit] += linalg.sandwich(M, cov)
-            P[hit[:, None, None], acc[None, :, None], acc[None, None, :]] = cov
+            variance = np.broadcast_to(np.asarray(quiescent_variance, dtype=float), (rows,))[hit]
+            P[hit[:, None, None], acc[None, :, None], acc[None, None, :]] = cov + variance[:, None, None] * np.eye(self.n_u)
             live = live.copy()
             live[hit] = False
             self.recorder.record("detection", hit, scan=scan[hit], onset=s_hat + 1, delta_u=du, ell=best[hit])
