@@ -1,7 +1,5 @@
 """Spec 004 R20-R22 study runner: seeded measurements (R21), two-point start, NIS/NEES consistency on a matched
-model, gating and track loss, MACs per track update, set-membership consistency test."""
-
-import math
+model, gating and track loss, MACs per track update, set estimates, every catalogue filter (§6 defaults)."""
 
 import numpy as np
 import pytest
@@ -16,7 +14,6 @@ from skytrack.studies.maneuver.runner import (
     RunOptions,
     _loss,
     run_filter,
-    set_consistency,
     two_point_initiation,
 )
 from skytrack.studies.maneuver.scenarios import SensorSpec, named_cases, scripted_case
@@ -130,20 +127,52 @@ def test_loss_rule_and_gating_modes():
     assert np.isnan(on.madds[FIRST_SCAN:][~on.used[FIRST_SCAN:].all(axis=1)]).all()  # cost counted on full batches only
 
 
-def test_set_consistency_maximises_delta_over_eta():
-    rng = np.random.default_rng(4)
-    M = rng.standard_normal((6, 3, 3))
-    A = M @ np.swapaxes(M, -1, -2) + 0.1 * np.eye(3)
-    N = rng.standard_normal((6, 3, 3))
-    B = N @ np.swapaxes(N, -1, -2) + 0.5 * np.eye(3)
-    nu = rng.standard_normal((6, 3)) * 3
-    eta = np.linspace(1e-5, 1 - 1e-5, 200_001)
-    brute = []
-    for r in range(6):
-        W = A[r][None] / (1 - eta)[:, None, None] + B[r][None] / eta[:, None, None]
-        solved = np.linalg.solve(W, np.broadcast_to(nu[r], (len(eta), 3))[..., None])[..., 0]
-        brute.append(np.max(solved @ nu[r]))
-    assert np.allclose(set_consistency(nu, A, B), brute, rtol=1e-9)
-    a, b, v = 4.0, 1.0, 1.5  # scalar closed form: max delta = nu^2 / (sqrt a + sqrt b)^2
-    assert set_consistency(np.array([[v, 0, 0]]), np.diag([a, 1, 1])[None], np.diag([b, 1, 1])[None])[0] == \
-        pytest.approx(v**2 / (math.sqrt(a) + math.sqrt(b)) ** 2, rel=1e-9)
+def test_set_estimates_gate_on_the_filters_consistency_and_start_from_the_bounding_set():
+    """Set-membership (R_b = 9 R bounds 3-sigma Gaussian errors): consistency d^2 < 1 is the gate, the truth is
+    inside E(x, P) on (almost) every scan, NEES is not computed."""
+    from skytrack.filters.set_membership import two_point_initial_set
+
+    case = straight_case(25.0)
+    meas = simulate_measurements(case, 50, 8)
+    spec = CATALOG["set-membership"]
+    filt = build(spec, case, meas)
+    run = run_filter(filt, case, meas, label="sm", initiation=spec.initiation)
+    assert run.estimate == "set" and np.isnan(run.nees).all() and np.isnan(run.nis).all()
+    k = FIRST_SCAN
+    x0, P0 = two_point_initial_set(meas.z[0], meas.z[1], 1.0, 9 * meas.R[1], 9 * meas.R[0])
+    predicted = filt.predict(filt.initiate(x0, P0), np.ones(50))
+    from skytrack.models.converted import ConvertedPositionModel
+
+    d2 = filt.innovate(predicted, meas.z[k], ConvertedPositionModel(3, 2), {"R": meas.R[k]}).d2
+    assert np.array_equal(run.consistency[k], d2) and np.array_equal(run.in_gate[k], d2 < 1)
+    assert np.nanmean(run.contained[FIRST_SCAN:]) > 0.99
+    with pytest.raises(ValueError, match="initiation"):
+        run_filter(filt, case, meas, label="sm", initiation="one-point")
+
+
+@pytest.mark.parametrize("label", sorted(CATALOG))
+def test_every_catalogue_filter_runs_on_the_default_turn(label):
+    """The §6 default parameters build every family, and the runner handles each (mixtures, constant gains,
+    sets, banks): finite errors from scan 2, a cost per update, no error on 6 runs of a 5 g turn."""
+    case = named_cases("default", turn_g=(5.0,))[0]
+    meas = simulate_measurements(case, 6, 1)
+    spec = CATALOG[label]
+    run = run_filter(build(spec, case, meas), case, meas, label=label, r_scale=spec.r_scale, initiation=spec.initiation)
+    assert np.isfinite(run.position_error[FIRST_SCAN:]).all() and np.isnan(run.position_error[:FIRST_SCAN]).all()
+    assert run.madds_per_update > 0 and run.us_per_update > 0
+    assert np.isfinite(run.nees[FIRST_SCAN:]).all() != (run.estimate == "set")
+
+
+def test_derived_options():
+    setting = FilterSetting(2.0, np.broadcast_to(np.diag([100.0, 400.0, 2500.0]), (4, 3, 3)))
+    spec = CATALOG["alpha-beta-gamma"]
+    filt, motion = spec.build(setting)
+    assert motion.order == 3
+    from skytrack.filters.alpha_beta_gains import kalata_alpha_beta_gamma
+
+    expected = kalata_alpha_beta_gamma(np.array([10.0 * 4 / 10, 10.0 * 4 / 20, 10.0 * 4 / 50]))
+    assert np.allclose(filt.alpha, expected[0], rtol=1e-12)
+    with pytest.raises(ValueError, match="unknown derived option"):
+        FilterSpec("x", "kalman", {"model": "dwna"}, derived=("sigma",))
+    with pytest.raises(ValueError, match="filter 'bad': unknown filter kind"):
+        FilterSpec("bad", "kalman-nope", {"model": "dwna"}).build(setting)

@@ -83,6 +83,7 @@ class FilterSetting:
 
     dt: float
     R0: np.ndarray  # [runs, 3, 3] covariance of the first measurement of every run
+    sensor_position: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def sigma_v_per_axis(setting: FilterSetting) -> np.ndarray:
@@ -105,6 +106,7 @@ DERIVED: dict[str, Callable[[FilterSetting, dict], object]] = {
     "sigma_v": lambda setting, design: tuple(float(v) for v in sigma_v_per_axis(setting)),
     "dt": lambda setting, design: float(setting.dt),
     "period": lambda setting, design: float(setting.dt),
+    "sensor_position": lambda setting, design: tuple(float(v) for v in setting.sensor_position),
     "tracking_index": _tracking_index,
 }
 
@@ -117,8 +119,9 @@ class FilterSpec:
     ``design`` parameters (which are not passed to the factory), e.g. the Kalata tracking index
     from ``design = {"sigma_w": 10}`` and the first measurement covariance.
 
-    ``r_scale`` multiplies the measurement covariance handed to the filter (the set-membership
-    filter's bound R_b = 9 R); ``description`` is the figure/summary text.
+    ``r_scale`` multiplies the measurement covariance handed to the filter; ``initiation`` is the
+    runner's start (``two-point``, or ``two-point-set`` for set-membership filters);
+    ``description`` is the figure/summary text.
     """
 
     label: str
@@ -129,6 +132,7 @@ class FilterSpec:
     r_scale: float = 1.0
     description: str = ""
     design: dict = field(default_factory=dict)
+    initiation: str = "two-point"
 
     def __post_init__(self) -> None:
         unknown = [name for name in self.derived if name not in DERIVED]
@@ -136,6 +140,8 @@ class FilterSpec:
             raise ValueError(f"filter {self.label!r}: unknown derived option(s) {unknown}; known: {sorted(DERIVED)}")
         if not (math.isfinite(self.r_scale) and self.r_scale > 0):
             raise ValueError(f"filter {self.label!r}: r_scale must be > 0, got {self.r_scale}")
+        if self.initiation not in ("two-point", "two-point-set"):
+            raise ValueError(f"filter {self.label!r}: initiation must be two-point or two-point-set, got {self.initiation!r}")
 
     def build(self, setting: FilterSetting) -> tuple[BatchFilter, MotionModel]:
         """The filter (through :func:`skytrack.filters.registry.build_filter`) and its motion model."""
@@ -152,7 +158,7 @@ class FilterSpec:
 
     @classmethod
     def from_dict(cls, label: str, values: dict) -> "FilterSpec":
-        known = {"kind", "motion", "options", "derived", "r_scale", "description", "design"}
+        known = {"kind", "motion", "options", "derived", "r_scale", "description", "design", "initiation"}
         if not isinstance(values, dict):
             raise ValueError(f"filters.{label}: expected a mapping, got {values!r}")
         unknown = sorted(set(values) - known)
@@ -162,7 +168,7 @@ class FilterSpec:
             raise ValueError(f"filters.{label}: needs kind and motion")
         spec = cls(label, str(values["kind"]), dict(values["motion"]), dict(values.get("options") or {}),
                    tuple(values.get("derived") or ()), float(values.get("r_scale", 1.0)), str(values.get("description", "")),
-                   dict(values.get("design") or {}))
+                   dict(values.get("design") or {}), str(values.get("initiation", "two-point")))
         build_motion(spec.motion)  # fail early on a bad motion
         return spec
 
@@ -171,18 +177,47 @@ def _spec(label, kind, motion, description, **extra) -> FilterSpec:
     return FilterSpec(label, kind, motion, description=description, **extra)
 
 
-#: §6 default filter parameters (entries whose family is registered; later studies add theirs)
+SINGER = {"model": "singer", "tau": 10.0, "sigma_m": 30.0}
+CV = {"model": "dwna", "sigma_w": 1.0}
+ORDER3 = {"model": "dwpa", "sigma_w": 8.0}  # families that use only the axes of their motion (3 states per axis)
+ADAPTIVE = {"variant": "structured", "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0}
+
+#: §6 default filter parameters, one entry per row of the table (PCG for each N, IMM for each set)
 CATALOG: dict[str, FilterSpec] = {s.label: s for s in (
-    _spec("kf-cv", "kalman", {"model": "dwna", "sigma_w": 1.0}, "KF-CV, DWNA sigma_w = 1 m/s^2"),
-    _spec("kf-cv-pn", "kalman", {"model": "dwna", "sigma_w": 20.0}, "pseudo-noise KF-CV, DWNA sigma_w = 20 m/s^2"),
+    _spec("kf-cv", "kalman", CV, "KF-CV, DWNA sigma_w = 1 m/s^2"),
+    _spec("pseudo-noise", "kalman-pseudo-noise", CV, "pseudo-noise KF-CV, constant q = 400: DWNA sigma_w = 20 m/s^2",
+          options={"q": 400.0}),
     _spec("kf-ca", "kalman", {"model": "dwpa", "sigma_w": 8.0}, "KF-CA, DWPA sigma_w = 8 m/s^2"),
     _spec("kf-dwpa", "kalman", {"model": "dwpa", "sigma_w": 10.0}, "KF-DWPA, sigma_w = 10 m/s^2 (the alpha-beta-gamma's KF)"),
-    _spec("kf-singer", "kalman", {"model": "singer", "tau": 10.0, "sigma_m": 30.0}, "KF-Singer, tau = 10 s, sigma_m = 30 m/s^2"),
+    _spec("kf-singer", "kalman", SINGER, "KF-Singer, tau = 10 s, sigma_m = 30 m/s^2"),
     _spec("alpha-beta", "alpha-beta", {"model": "dwna", "sigma_w": 5.0}, "alpha-beta, Kalata DWNA sigma_w = 5 m/s^2",
           options={"gain_rule": "kalata"}, derived=("tracking_index", "period"), design={"sigma_w": 5.0}),
     _spec("alpha-beta-gamma", "alpha-beta", {"model": "dwpa", "sigma_w": 10.0},
           "alpha-beta-gamma, Kalata DWPA sigma_w = 10 m/s^2", options={"gain_rule": "kalata"},
           derived=("tracking_index", "period"), design={"sigma_w": 10.0}),
+    _spec("per-axis", "kalman-per-axis", SINGER, "per-axis KF, Singer 10 s, 30 m/s^2"),
+    _spec("transformed-gain", "kalman-transformed-gain", SINGER, "transformed-gain KF (LOS frame), Singer 10 s, 30 m/s^2",
+          derived=("sensor_position",)),
+    *[_spec(f"pcg-{n}", "kalman-piecewise-gain", SINGER, f"piecewise-constant gain N = {n}, Singer 10 s, 30 m/s^2",
+            options={"N": n}) for n in (1, 2, 5, 10, 20)],
+    _spec("adaptive", "kalman-adaptive", CV, "adaptive KF (structured Sage-Husa), CV, R0 = 4 R, q0 = 25",
+          options=dict(ADAPTIVE), derived=("period",)),
+    _spec("set-membership", "set-membership", CV, "set-membership, CV, |a_i| <= 7 g0 box bound, R_b = 9 R",
+          options={"r_bound_scale": 9.0}, initiation="two-point-set"),
+    _spec("vd", "variable-dimension", ORDER3, "VD, sigma_cv = 1, sigma_ca = 8, rho = 0.8, P_fa = 0.01",
+          options={"sigma_cv": 1.0, "sigma_ca": 8.0, "rho": 0.8, "p_fa": 0.01}),
+    _spec("ie", "input-estimation", ORDER3, "input estimation, CV sigma_w = 1, N_w = 20, P_fa = 0.01, Bonferroni",
+          options={"sigma_w": 1.0, "window": 20, "p_fa": 0.01, "bonferroni": True}),
+    _spec("adaptive-ie", "adaptive-input-estimation", ORDER3, "structured adaptive KF + IE (N_w = 20, P_fa = 0.01)",
+          options={"window": 20, "p_fa": 0.01, "bonferroni": True, "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0}),
+    _spec("berg-full", "berg-full", ORDER3, "Berg full 9x9, (tau, sigma) = (60, 3), (15, 40), (30, 10), mean jerk",
+          options={"tangential": (60.0, 3.0), "normal": (15.0, 40.0), "binormal": (30.0, 10.0), "mean_jerk": True}),
+    _spec("berg-frame", "berg-frame", ORDER3, "Berg target-frame blocks, channels as berg-full, mean jerk",
+          options={"tangential": (60.0, 3.0), "normal": (15.0, 40.0), "binormal": (30.0, 10.0), "mean_jerk": True}),
+    _spec("static-bank", "static-bank", ORDER3, "static bank CV/CA/Singer, W = 5, P_div = 0.001, mu_min = 1e-3, cooldown 20",
+          options={"model_set": "cv-ca-singer", "window": 5, "p_divergence": 0.001, "mu_floor": 1e-3, "cooldown": 20}),
+    *[_spec(f"imm-{name}", "imm", ORDER3, f"IMM {name} (sojourn CV 20 s, others 10 s)", options={"model_set": name})
+      for name in ("cv-ca", "cv-ct", "full")],
 )}
 
 

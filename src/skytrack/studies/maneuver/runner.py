@@ -10,7 +10,9 @@ Runs are the batch dimension (row r = run r).  Protocol of one case (§6 common 
    (``predicted.estimate()``: the moment-matched mixture for banks and IMM, the steady-state
    covariance for constant-gain filters) gives ``S = H P^- H^T + R`` and the true-measurement
    NIS ``eps = nu^T S^-1 nu`` used for gating and track loss (R20); set estimates use the
-   consistency test ``max_eta delta(eta) < 1`` of §3.3 I instead;
+   consistency test of §3.3 I instead, ``d^2 = max_eta delta(eta) < 1`` as the filter's own
+   ``innovate`` computes it with its bound ``R_b`` (their initial set is the two-point bounding
+   ellipsoid, ``initiation="two-point-set"``);
 3. ``gating="off"`` (default): every measurement is used, a run is lost when eps exceeds
    ``chi2_{3}^-1(gate_probability)`` on ``loss_scans`` consecutive scans; ``gating="on"``: a
    measurement outside the gate is not used (the filter coasts on its prediction) and a run is
@@ -26,6 +28,7 @@ runner's own bookkeeping (NIS, NEES, gating) stays outside the counted blocks.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -48,9 +51,7 @@ FIRST_SCAN = 2
 NDIM = 3
 #: containment tolerance of the set estimate's quadratic form (E9: <= 1 + 1e-9)
 CONTAINMENT_TOLERANCE = 1e-9
-#: eta grid of the set-membership consistency test (logit-spaced, then golden-section refined)
-_ETA = 1.0 / (1.0 + np.exp(-np.linspace(-12.0, 12.0, 241)))
-_GOLDEN_STEPS = 60
+INITIATIONS = ("two-point", "two-point-set")
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ class FilterRun:
     velocity_error: np.ndarray  # [K, runs, 3]
     nees: np.ndarray  # position+velocity NEES
     nis: np.ndarray  # eps of the true measurement against the predicted output estimate
-    consistency: np.ndarray  # max_eta delta of set estimates (NaN otherwise)
+    consistency: np.ndarray  # d^2 = max_eta delta of set estimates (NaN otherwise)
     in_gate: np.ndarray
     used: np.ndarray
     contained: np.ndarray  # 1/0 for set estimates, NaN otherwise
@@ -166,36 +167,24 @@ def truth_state(case: Case, order: int) -> np.ndarray:
     return x
 
 
-def set_consistency(nu: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``max_eta nu^T (A/(1-eta) + B/eta)^-1 nu`` per row (§3.3 I; ``A = H P^- H^T`` of the shape matrix,
-    ``B = R_b``).  Whitening by B's Cholesky factor and the eigenvectors of the whitened A make
-    ``delta(eta) = sum_i w_i / (lam_i/(1-eta) + 1/eta)``; its maximum is bracketed on a logit grid of
-    eta and refined by golden-section search."""
-    C = np.linalg.cholesky(B)
-    w = np.linalg.solve(C, nu[..., None])[..., 0]
-    Ci = np.linalg.inv(C)
-    lam, U = np.linalg.eigh(Ci @ A @ np.swapaxes(Ci, -1, -2))
-    lam = np.maximum(lam, 0.0)
-    proj = np.einsum("rji,rj->ri", U, w) ** 2
+class _Cost:
+    """Multiply-adds (``linalg.counting``) and wall seconds of the filter steps of one scan."""
 
-    def delta(eta):  # eta [rows, G] -> [rows, G]
-        e = eta[..., None]
-        return np.sum(proj[:, None, :] / (lam[:, None, :] / (1.0 - e) + 1.0 / e), axis=-1)
+    def __init__(self, count: bool) -> None:
+        self.count = count
+        self.madds = 0.0
+        self.seconds = 0.0
 
-    coarse = delta(np.broadcast_to(_ETA, (len(nu), len(_ETA))))
-    best = np.argmax(coarse, axis=1)
-    lo = _ETA[np.maximum(best - 1, 0)].copy()
-    hi = _ETA[np.minimum(best + 1, len(_ETA) - 1)].copy()
-    ratio = (math.sqrt(5.0) - 1.0) / 2.0
-    for _ in range(_GOLDEN_STEPS):
-        a = hi - ratio * (hi - lo)
-        b = lo + ratio * (hi - lo)
-        values = delta(np.stack([a, b], axis=1))
-        left = values[:, 0] >= values[:, 1]
-        hi = np.where(left, b, hi)
-        lo = np.where(left, lo, a)
-    refined = delta(((lo + hi) / 2.0)[:, None])[:, 0]
-    return np.maximum(coarse.max(axis=1), refined)
+    @contextlib.contextmanager
+    def measure(self):
+        started = time.perf_counter()
+        if self.count:
+            with linalg.counting() as ops:
+                yield
+            self.madds += ops.madds
+        else:
+            yield
+        self.seconds += time.perf_counter() - started
 
 
 def _loss(flag: np.ndarray, loss_scans: int) -> tuple[np.ndarray, np.ndarray]:
@@ -211,8 +200,13 @@ def _loss(flag: np.ndarray, loss_scans: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run_filter(filt: BatchFilter, case: Case, meas: MeasurementSet, *, label: str, options: RunOptions = RunOptions(),
-               r_scale: float = 1.0, progress=None) -> FilterRun:
-    """Run ``filt`` over every run of ``case`` (module docstring); ``progress(scans_done)`` after each scan."""
+               r_scale: float = 1.0, initiation: str = "two-point", progress=None) -> FilterRun:
+    """Run ``filt`` over every run of ``case`` (module docstring); ``progress(scan)`` after each scan.
+
+    ``initiation``: ``two-point`` (Gaussian, module docstring) or ``two-point-set`` (the bounding
+    ellipsoid of :func:`skytrack.filters.set_membership.two_point_initial_set` with the filter's
+    ``R_b = r_bound_scale R``); ``r_scale`` multiplies the measurement covariance handed to the filter.
+    """
     scans, runs = meas.scans, meas.runs
     if scans != case.scans:
         raise ValueError(f"measurements have {scans} scans, case {case.label!r} has {case.scans}")
@@ -242,62 +236,59 @@ def run_filter(filt: BatchFilter, case: Case, meas: MeasurementSet, *, label: st
     madds, wall = np.full(scans, np.nan), np.full(scans, np.nan)
     diagnostics: list = [[] for _ in range(scans)]
 
-    x0, P0 = two_point_initiation(z[0], z[1], R[0], R[1], case.truth.time[1] - case.truth.time[0], order,
-                                  options.init_accel_sigma)
+    dt0 = case.truth.time[1] - case.truth.time[0]
+    if initiation == "two-point-set":
+        from skytrack.filters.set_membership import two_point_initial_set
+
+        scale = float(getattr(filt, "r_bound_scale", 1.0))
+        x0, P0 = two_point_initial_set(z[0], z[1], dt0, scale * R[1], scale * R[0])
+    elif initiation == "two-point":
+        x0, P0 = two_point_initiation(z[0], z[1], R[0], R[1], dt0, order, options.init_accel_sigma)
+    else:
+        raise ValueError(f"initiation must be one of {INITIATIONS}, got {initiation!r}")
     state = filt.initiate(x0, P0)
     all_rows = np.arange(runs)
     for k in range(FIRST_SCAN, scans):
         dt = np.full(runs, case.truth.time[k] - case.truth.time[k - 1])
-        ops_count = 0.0
-        started = time.perf_counter()
-        if options.count_cost:
-            with linalg.counting() as ops:
-                predicted = filt.predict(state, dt)
-            ops_count += ops.madds
-        else:
+        cost = _Cost(options.count_cost)
+        with cost.measure():
             predicted = filt.predict(state, dt)
-        elapsed = time.perf_counter() - started
-
         est = predicted.estimate()
-        nu = z[k] - est.x[:, pos]
-        A = est.P[:, pos[:, None], pos[None, :]]
+        innovation = None
+        events_before = len(recorder.events) if recorder is not None else 0
+        if is_set or options.gating == "off":
+            with cost.measure():
+                innovation = filt.innovate(predicted, z[k], model, {"R": R[k]})
         if is_set:
-            consistency[k] = set_consistency(nu, A, R[k])
-            in_gate[k] = consistency[k] < 1.0
+            consistency[k] = innovation.d2
+            in_gate[k] = innovation.d2 < 1.0
         else:
-            S = A + R[k]
+            nu = z[k] - est.x[:, pos]
+            S = est.P[:, pos[:, None], pos[None, :]] + R[k]
             with np.errstate(invalid="ignore"):
                 nis[k] = np.einsum("ri,ri->r", nu, np.linalg.solve(S, nu[..., None])[..., 0])
             in_gate[k] = nis[k] <= gate
         rows = all_rows if options.gating == "off" else np.flatnonzero(in_gate[k])
         used[k, rows] = True
-        if rows.size:
-            subset = predicted if rows.size == runs else predicted.take(rows)
-            context = {"R": R[k, rows]}
-            events_before = len(recorder.events) if recorder is not None else 0
-            started = time.perf_counter()
+        if rows.size == runs:
+            with cost.measure():
+                if innovation is None:
+                    innovation = filt.innovate(predicted, z[k], model, {"R": R[k]})
+                state, _ = filt.update(predicted, z[k], innovation)
             if options.count_cost:
-                with linalg.counting() as ops:
-                    innovation = filt.innovate(subset, z[k, rows], model, context)
-                    updated, _ = filt.update(subset, z[k, rows], innovation)
-                ops_count += ops.madds
-            else:
-                innovation = filt.innovate(subset, z[k, rows], model, context)
-                updated, _ = filt.update(subset, z[k, rows], innovation)
-            elapsed += time.perf_counter() - started
-            if rows.size == runs:
-                state = updated
-            else:
-                predicted.put(rows, updated)
-                state = predicted
-            if recorder is not None:
-                diagnostics[k] = [(ch, rows[np.asarray(r)], v) for ch, r, v in recorder.events[events_before:]]
+                madds[k] = cost.madds / runs
+            wall[k] = cost.seconds / runs * 1e6
+        elif rows.size:
+            subset = predicted.take(rows)
+            events_before = len(recorder.events) if recorder is not None else 0
+            innovation = filt.innovate(subset, z[k, rows], model, {"R": R[k, rows]})
+            updated, _ = filt.update(subset, z[k, rows], innovation)
+            predicted.put(rows, updated)
+            state = predicted
         else:
             state = predicted
-        if rows.size == runs:
-            if options.count_cost:
-                madds[k] = ops_count / runs
-            wall[k] = elapsed / runs * 1e6
+        if recorder is not None and rows.size:
+            diagnostics[k] = [(ch, rows[np.asarray(r)], v) for ch, r, v in recorder.events[events_before:]]
 
         out = state.estimate()
         err = out.x - truth[k]

@@ -227,12 +227,12 @@ class StudyContext:
             sigma_m: float | None = None) -> FilterRun:
         """Run one filter on every run of ``case`` (:func:`skytrack.studies.maneuver.runner.run_filter`)."""
         meas = self.measurements(case, mode, sigma_m)
-        filt, _ = spec.build(FilterSetting(case.dt, meas.R[0] * spec.r_scale))
+        filt, _ = spec.build(FilterSetting(case.dt, meas.R[0] * spec.r_scale, case.sensor.position))
         if self._done >= self._total:
             self._total = self._done + 1
         self._report(f"{spec.label} · {case.label} · gating {gating}")
         result = run_filter(filt, case, meas, label=spec.label, options=RunOptions(gating=gating, record=record),
-                            r_scale=spec.r_scale)
+                            r_scale=spec.r_scale, initiation=spec.initiation)
         self._done += 1
         self._report(f"{spec.label} · {case.label} · gating {gating}")
         if gating == "off":
