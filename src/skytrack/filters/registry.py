@@ -1,7 +1,7 @@
 """Registry of filter families: a kind name -> a factory building the filter from a motion model.
 
 Adding a family is one module in ``skytrack/filters/`` with a ``@register_filter("kind")``
-factory: every module of the package is imported when this registry is first imported
+factory: every module of the package is imported when :data:`FILTERS` is first read
 (:func:`_discover_families`), so nothing else needs editing; the tracker's configuration,
 the CLI's ``--filter`` option and the conformance suite all read :data:`FILTERS`.
 
@@ -25,14 +25,63 @@ from skytrack.filters.maneuver import ManoeuvreSwitchFilter
 from skytrack.models.motion import MotionModel
 
 FilterFactory = Callable[..., BatchFilter]
-FILTERS: dict[str, FilterFactory] = {}
+
+
+class FilterRegistry(dict):
+    """kind -> factory; reading it first imports every family module (:func:`_discover_families`).
+
+    Discovery waits for the first read so that importing one family module first (which imports
+    this registry) never finds a sibling module half-initialised: by the first read every module
+    that imports another has finished."""
+
+    _discovered = False
+
+    def _discover(self) -> None:
+        if not FilterRegistry._discovered:
+            FilterRegistry._discovered = True
+            _discover_families()
+
+    def __getitem__(self, kind):
+        self._discover()
+        return super().__getitem__(kind)
+
+    def __contains__(self, kind) -> bool:
+        self._discover()
+        return super().__contains__(kind)
+
+    def __iter__(self):
+        self._discover()
+        return super().__iter__()
+
+    def __len__(self) -> int:
+        self._discover()
+        return super().__len__()
+
+    def keys(self):
+        self._discover()
+        return super().keys()
+
+    def items(self):
+        self._discover()
+        return super().items()
+
+    def values(self):
+        self._discover()
+        return super().values()
+
+    def get(self, kind, default=None):
+        self._discover()
+        return super().get(kind, default)
+
+
+FILTERS: dict[str, FilterFactory] = FilterRegistry()
 
 
 def register_filter(kind: str) -> Callable[[FilterFactory], FilterFactory]:
     def decorate(factory: FilterFactory) -> FilterFactory:
-        if kind in FILTERS:
+        if dict.__contains__(FILTERS, kind):
             raise ValueError(f"filter kind {kind!r} is registered twice")
-        FILTERS[kind] = factory
+        dict.__setitem__(FILTERS, kind, factory)
         return factory
 
     return decorate
@@ -65,5 +114,3 @@ def _discover_families() -> None:
         if not info.ispkg and not info.name.startswith("_") and info.name != "registry":
             importlib.import_module(f"skytrack.filters.{info.name}")
 
-
-_discover_families()
