@@ -208,6 +208,26 @@ def test_early_detection_uses_the_scans_available():
     np.testing.assert_allclose(states[k].P[0], P_ref, rtol=1e-9)
 
 
+def test_no_reinitialisation_across_a_zero_step():
+    """Two measurements at the same time (a zero step) cannot give the two-point acceleration: the
+    window is shortened so that its onset measurement is reached by a nonzero step."""
+    filt = VariableDimensionFilter(1)
+    filt.recorder = ListRecorder()
+    model = ConvertedPositionModel(1, 3)
+    state = filt.initiate(np.array([[0.0, 200.0, 0.0]]), np.diag([100.0, 25.0, 1.0])[None])
+    steps = [0.0] + [1.0] * 9
+    t = np.cumsum(steps)
+    zs = 200.0 * t + np.where(t >= 2.0, 900.0 * (t - 1.0), 0.0)
+    for dt, z in zip(steps, zs):
+        pred = filt.predict(state, np.array([dt]))
+        state, _ = filt.update(pred, np.array([[z]]), filt.innovate(pred, np.array([[z]]), model, {"R": np.array([[[100.0]]])}))
+        assert np.all(np.isfinite(state.x)) and np.all(np.isfinite(state.P))
+    (rows, values), = [e for e in filt.recorder.channel("switch") if e[1]["mode"][0] == 1][:1]
+    # detected at the first scan over the threshold (3) with the window 1 instead of 2: the onset
+    # measurement is scan 2, not the zero-step scan 1
+    assert values["scan"][0] == 3 and values["refiltered"][0] == 1
+
+
 def test_return_to_cv_when_the_acceleration_is_insignificant():
     """Acceleration for 15 scans, then constant velocity: VD returns to CV once the summed
     significance of the last s scans is below chi2_{n_a s}^-1(0.95); u restarts from 0, and the next

@@ -15,7 +15,9 @@ gains).  On detection at scan k the acceleration is assumed to have started at `
 ``P' = calM blockdiag(R, P_pv) calM^T`` (:func:`onset_reinitialisation`), then ``z(k-s+1..k)`` are
 re-filtered with CA.  Each row keeps the last ``s + 1`` estimates, measurements, their R and
 time steps in fixed-size per-row buffers (slot 0 newest).  While fewer than ``s + 1`` scans
-exist, the window is what there is (``w = min(s, k - 1)``), so a detection is never deferred.
+exist, the window is what there is (``w = min(s, k - 1)``), so a detection is never deferred;
+a window whose onset measurement was reached by a zero step (two-point acceleration undefined)
+is shortened to the longest one that was not.
 CA mode returns to CV when the acceleration is insignificant,
 ``sum_{last s scans} a^T P_aa^-1 a <= chi2_{n_a s}^-1(0.95)`` (:func:`return_threshold`).  The
 spec does not say when the test starts.  By default (``count_refiltered=False``) it starts once
@@ -40,7 +42,8 @@ Measurements: positions only (``H`` selects the positions; e.g.
 :class:`~skytrack.models.converted.ConvertedPositionModel` without range rate), since the
 re-initialisation reads ``z`` as a position.  A backward step (``dt < 0``) uses ``F(dt)`` and
 ``Q(|dt|)``.  Diagnostics: recorder channel ``"switch"`` (rows, ``mode`` 1 = manoeuvre /
-0 = quiescent, ``scan``, ``refiltered`` = scans re-filtered at the detection, 0 on a return)
+0 = quiescent, ``scan`` = the row's number of updates, ``refiltered`` = scans re-filtered at the
+detection, 0 on a return)
 and, when a recorder is active, ``"detector"`` (rows, ``fading_nis``, ``mode``) every update.
 All matrix products go through :mod:`skytrack.core.linalg` (R2, R22).
 """
@@ -60,6 +63,10 @@ from skytrack.models.embedding import EmbeddedAxis
 from skytrack.models.motion import MotionModel, block_diag_batch
 from skytrack.models.polynomial import PolynomialAxis
 
+__all__ = ["detector_threshold", "detector_window", "return_threshold", "onset_reinitialisation",
+           "VariableDimensionFilter", "VariableDimensionState"]
+
+
 #: states per axis of the spec 004 manoeuvre filters (position, velocity, acceleration)
 ORDER = 3
 #: probability of the acceleration-significance test that ends a manoeuvre (§3.3 J)
@@ -67,10 +74,6 @@ RETURN_PROBABILITY = 0.95
 
 
 # ---------------------------------------------------------------------------- thresholds
-__all__ = ["detector_threshold", "detector_window", "return_threshold", "onset_reinitialisation",
-           "VariableDimensionFilter", "VariableDimensionState"]
-
-
 def return_threshold(n_a: int, window: int) -> float:
     """``chi2_{n_a s}^-1(0.95)``: below it the summed acceleration significance ends a manoeuvre."""
     return float(stats.chi2.ppf(RETURN_PROBABILITY, n_a * window))
@@ -332,11 +335,12 @@ class VariableDimensionFilter(BatchFilter):
                                      refiltered=np.zeros(len(back), np.int64))
 
         # CV rows over the threshold: re-initialise at the assumed onset and re-filter with CA
-        detect = np.flatnonzero(quiet & (fading > self.threshold))
+        window = self._windows(pred)
+        detect = np.flatnonzero(quiet & (fading > self.threshold) & (window >= 0))
         if len(detect):
             x, P, significance, ca_scans = x.copy(), P.copy(), significance.copy(), ca_scans.copy()
             x[detect], P[detect], significance[detect], refiltered = self._refilter(
-                pred.take(detect), z[detect], innovation.R[detect])
+                pred.take(detect), z[detect], innovation.R[detect], window[detect])
             ca_scans[detect] = refiltered if self.count_refiltered else 0
             manoeuvre[detect] = True
             self.recorder.record("switch", detect, mode=np.ones(len(detect), np.int64), scan=scan[detect],
@@ -350,16 +354,24 @@ class VariableDimensionFilter(BatchFilter):
             _push(pred.history_R, innovation.R), _push(pred.history_dt, pred.pending_dt), significance, ca_scans)
         return new, UpdateStats(innovation.d2 / innovation.m)
 
-    def _refilter(self, pred: VariableDimensionState, z: np.ndarray, R: np.ndarray):
-        """Re-initialisation and CA re-filtering of the detecting rows (masked over their windows).
+    def _windows(self, pred: VariableDimensionState) -> np.ndarray:
+        """Re-filtering window w per row: ``min(s, k-1)``, shortened to the longest one whose onset
+        measurement was reached by a nonzero step (the two-point acceleration divides by it); -1
+        when there is none.  Ages as in :meth:`_refilter`."""
+        steps = np.concatenate([pred.pending_dt[:, None], pred.history_dt[:, : self.window]], axis=1)
+        ages = np.arange(self.window + 1)
+        usable = (ages[None, :] <= np.minimum(pred.scan, self.window)[:, None]) & (steps != 0.0)
+        return np.where(usable.any(axis=1), self.window - np.argmax(usable[:, ::-1], axis=1), -1)
+
+    def _refilter(self, pred: VariableDimensionState, z: np.ndarray, R: np.ndarray, w: np.ndarray):
+        """Re-initialisation and CA re-filtering of the detecting rows (masked over their windows w).
 
         Index by age a (scans before the current one): the measurement, R and step of age a are
         the current ones for a = 0 and history slot a-1 otherwise; the estimate of age a is
-        history slot a-1.  The window is ``w = min(s, k-1)``: re-initialise from the estimate of
-        age w+1 and the measurement of age w, then filter ages w-1 .. 0.
+        history slot a-1.  Re-initialise from the estimate of age w+1 and the measurement of age w,
+        then filter ages w-1 .. 0.
         """
         s, count = self.window, len(pred)
-        w = np.minimum(pred.scan, s)
         rows = np.arange(count)
         meas_z = np.concatenate([z[:, None], pred.history_z[:, :s]], axis=1)
         meas_R = np.concatenate([R[:, None], pred.history_R[:, :s]], axis=1)
