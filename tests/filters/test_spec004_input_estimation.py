@@ -78,7 +78,7 @@ TV15_TABLE = {1: (315.20448, 158.966182739), 2: (97.233789843, 206.841310455), 3
 def test_tv15_bank_at_scan_24_with_detection_disabled():
     x0, P0, K, S = tv15_start()
     assert K == pytest.approx([0.36, 0.08], rel=1e-9) and S == pytest.approx(156.25, rel=1e-9)
-    filt = InputEstimationFilter(1, window=10, threshold=np.inf)
+    filt = InputEstimationFilter(1, window=10, threshold=np.inf, record_bank=True)
     states, innovations = run_1d(filt, tv15_truth(24), x0, P0)
     nu = np.array([inn.nu[0, 0] for inn in innovations])
     np.testing.assert_allclose(nu[:20], 0.0, atol=1e-9)
@@ -104,8 +104,9 @@ def test_tv15_correction_at_scan_24():
     x0, P0, _, _ = tv15_start()
     filt = InputEstimationFilter(1, window=10, threshold=247.0)
     states, _ = run_1d(filt, tv15_truth(24), x0, P0)
-    bank23 = filt.recorder.channel("bank")[-2][1]
-    assert np.max(bank23["ell"]) < 247.0
+    likelihood = filt.recorder.channel("likelihood")
+    assert likelihood[-2][1]["ell"][0] < 247.0 and likelihood[-1][1]["onset"][0] == 4
+    assert filt.recorder.channel("bank") == []  # only with record_bank
     (rows, det), = filt.recorder.channel("detection")
     assert det["scan"][0] == 24 and det["onset"][0] == 4
     assert det["delta_u"][0, 0] == pytest.approx(30.0, rel=1e-9)
@@ -150,7 +151,7 @@ def test_estimates_are_consistent_on_the_matched_model():
             x = F2 @ x + G2 * ((30.0 if j >= 20 else 0.0) + g.standard_normal())
             zs[r, j] = x[0] + 10.0 * g.standard_normal()
         final[r] = x
-    filt = InputEstimationFilter(1, window=10, threshold=np.inf)
+    filt = InputEstimationFilter(1, window=10, threshold=np.inf, record_bank=True)
     states, _ = run_1d(filt, zs.T, np.repeat(x0, runs, 0), np.repeat(P0, runs, 0))
     bank = filt.recorder.channel("bank")[-1][1]
     du, L, M = bank["delta_u"][:, 5, 0], bank["input_cov"][:, 5, 0, 0], bank["bias"][:, 5, :2, 0]
@@ -184,7 +185,7 @@ def test_window_one_is_a_one_scan_nis_test():
     filt = InputEstimationFilter(1, window=1, threshold=1e-9)
     x0, P0, _, _ = tv15_start()
     _, innovations = run_1d(filt, zs, x0, P0)
-    ells = [v["ell"][0, 0] for _, v in filt.recorder.channel("bank")]
+    ells = [v["ell"][0] for _, v in filt.recorder.channel("likelihood")]
     np.testing.assert_allclose(ells, [inn.d2[0] for inn in innovations], rtol=1e-9)
     assert [int(v["scan"][0]) for _, v in filt.recorder.channel("detection")] == list(range(1, 9))
     assert detection_threshold(3, 0.01, 1) == pytest.approx(11.344867, abs=1e-6)

@@ -20,10 +20,11 @@ adapt (its ``"adaptive"`` recorder channel then shows ``nis = inf`` for those ro
 The acceleration block of the covariance follows input estimation's convention with the current
 ``q^`` as the DWNA variance: ``U + q^ I`` (U = 0 until the first correction, then ``L_s``).
 
-Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``)
+Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``,
+``record_bank``)
 and of the structured adaptive filter (``b``, ``warmup``, ``gate_probability``, ``r_lo``, ``r_hi``,
 ``q_lo``, ``q_hi``, ``q0``, ``r0_scale``, ``fixed_weight``).  Recorder channels: the IE channels
-(``"detection"``, ``"bank"``) and the adaptive filter's (``"adaptive"``, ``"gain"``).  Like the
+(``"detection"``, ``"likelihood"``, ``"bank"``) and the adaptive filter's (``"adaptive"``, ``"gain"``).  Like the
 adaptive filter, the gain follows R^ rather than the model's R after a row's first update
 (``gain_depends_on_r`` is False).
 """
@@ -95,6 +96,7 @@ class AdaptiveInputEstimationFilter(BatchFilter):
     input_axes: int | None = None
     adapt_always: bool = False
     adaptive_options: dict = field(default_factory=dict)
+    record_bank: bool = False
     compiled: bool = True
 
     kind = "adaptive-input-estimation"
@@ -107,7 +109,7 @@ class AdaptiveInputEstimationFilter(BatchFilter):
             raise ValueError(f"adaptive input estimation: unknown options {unknown}; the adaptive filter's are "
                              f"{', '.join(ADAPTIVE_OPTIONS)} (the variant is always 'structured')")
         self.ie = ie_family.InputEstimationFilter(self.ndim, 1.0, self.window, self.p_fa, self.bonferroni, self.threshold,
-                                        self.input_axes)
+                                                  self.input_axes, self.record_bank)
         self.threshold = self.ie.threshold
         self.adaptive = adaptive_family.AdaptiveKalmanFilter(
             MotionModel([ie_family.AppliedInputAxis(1.0)] * self.ndim), variant="structured",
@@ -189,7 +191,8 @@ from skytrack.filters.registry import register_filter  # noqa: E402  (after the 
 @register_filter("adaptive-input-estimation")
 def _adaptive_input_estimation(motion: MotionModel, compiled: bool = True, window: int = 20, p_fa: float = 0.01,
                                bonferroni: bool = True, threshold: float | None = None, input_axes: int | None = None,
-                               adapt_always: bool = False, **adaptive_options) -> AdaptiveInputEstimationFilter:
+                               adapt_always: bool = False, record_bank: bool = False,
+                               **adaptive_options) -> AdaptiveInputEstimationFilter:
     """§3.3 L on the axes of an order-3 ``motion`` (only its number of axes is used)."""
     return AdaptiveInputEstimationFilter(check_order3(motion, "adaptive-input-estimation"), window, p_fa, bonferroni,
-                                         threshold, input_axes, adapt_always, adaptive_options, compiled)
+                                         threshold, input_axes, adapt_always, adaptive_options, record_bank, compiled)

@@ -12,8 +12,11 @@ model believes of the acceleration over the coming interval: ``u_app`` plus the 
 covariance ``U + sigma_w^2 I`` with ``U = 0`` until the first correction (IE starts from a known
 input, the initial estimate's acceleration; its covariance and cross-covariance are dropped at
 ``initiate``) and ``U = L_s`` of the last correction after it.  It is uncorrelated with position
-and velocity and never enters their numbers; on the filter's own model (DWNA truth, onsets of
-constant inputs) it makes the 9-state NEES consistent, like the VD filter's quiescent convention.
+and velocity and never enters their numbers.  On DWNA truth written in this form (the
+acceleration entry is the coming interval's) the 9-state NEES is consistent without detections
+(9.03 in the conformance suite's setting); false-alarm corrections make it overconfident (10.2
+with the default P_fa = 0.01: the ML onset's du is selected for its size, so L understates its
+error).
 
 Onset bank (per row, arrays ``[rows, N_w, ...]``): hypothesis s says an extra constant input
 started on the transition ``k-s -> k-s+1``.  One hypothesis is created after every update
@@ -34,10 +37,13 @@ Costs (R22): every product goes through :mod:`skytrack.core.linalg`; predict and
 all N_w slots (dead ones masked), so the multiply-adds per update are affine in N_w (E4).  With
 detection disabled and no active recorder, ``du`` and ``l`` are not computed.
 
-Diagnostics: recorder channel ``"detection"`` (rows, ``scan``, ``onset`` = s^, ``delta_u``, ``ell``)
-and, when a recorder is active, ``"bank"`` every update (rows, ``ell[K, N_w]`` with ``-inf`` for
+Diagnostics: recorder channel ``"detection"`` (rows, ``scan`` = the row's number of updates,
+``onset`` = s^, ``delta_u``, ``ell``); when a recorder is active, ``"likelihood"`` every update
+(rows, ``onset`` = s^, ``ell`` = l_s^; ``onset`` 0 and ``ell`` -inf when no hypothesis is usable)
+and, with ``record_bank=True``, ``"bank"`` every update (rows, ``ell[K, N_w]`` with ``-inf`` for
 empty slots, ``delta_u[K, N_w, n_u]``, ``input_cov[K, N_w, n_u, n_u]`` = L_s,
-``bias[K, N_w, n, n_u]`` = M_s; slot j is s = j + 1).  Measurements: positions only (as VD).
+``bias[K, N_w, n, n_u]`` = M_s; slot j is s = j + 1; large: N_w (1 + n_u)(1 + n_u + n) numbers
+per row and scan).  Measurements: positions only (as VD).
 """
 
 from __future__ import annotations
@@ -135,6 +141,7 @@ class InputEstimationFilter(BatchFilter):
     bonferroni: bool = True
     threshold: float | None = None
     input_axes: int | None = None
+    record_bank: bool = False
 
     kind = "input-estimation"
     capabilities = Capabilities()
@@ -255,7 +262,11 @@ class InputEstimationFilter(BatchFilter):
             best = ell[np.arange(rows), onset]
             detect = (live.sum(axis=1) >= self.min_hypotheses) & (best > self.threshold)
             if self.recorder.active:
-                self.recorder.record("bank", np.arange(rows), ell=ell, delta_u=delta_u, input_cov=input_cov, bias=bias)
+                usable = np.isfinite(best)
+                self.recorder.record("likelihood", np.arange(rows), onset=np.where(usable, onset + 1, 0), ell=best)
+                if self.record_bank:
+                    self.recorder.record("bank", np.arange(rows), ell=ell, delta_u=delta_u, input_cov=input_cov,
+                                         bias=bias)
         if detect.any():
             hit = np.flatnonzero(detect)
             s_hat = onset[hit]
@@ -299,8 +310,8 @@ from skytrack.filters.registry import register_filter  # noqa: E402
 @register_filter("input-estimation")
 def _input_estimation(motion: MotionModel, compiled: bool = True, sigma_w: float = 1.0, window: int = 20,
                       p_fa: float = 0.01, bonferroni: bool = True, threshold: float | None = None,
-                      input_axes: int | None = None) -> InputEstimationFilter:
+                      input_axes: int | None = None, record_bank: bool = False) -> InputEstimationFilter:
     """IE filter on the axes of an order-3 ``motion`` (only its number of axes is used).  ``compiled``
     is accepted and ignored: the family has no compiled kernel."""
     return InputEstimationFilter(check_order3(motion, "input-estimation"), sigma_w, window, p_fa, bonferroni,
-                                 threshold, input_axes)
+                                 threshold, input_axes, record_bank)
