@@ -361,8 +361,25 @@ def test_recorder_only_observes(kind, motion, compiled):
         assert all(len(v) == len(rows) for v in values.values())
 
 
-@pytest.mark.parametrize("kind,motion,compiled", conformance_cases(
-    lambda f: f.capabilities.has_covariance and not is_mixture(f)))
+#: Kinds whose NEES on the suite's motion is known to fail (issue 7, open; strict: the mark must go
+#: when they pass).  The manoeuvre detectors' own model is their quiescent CV, not the suite's
+#: motion, until they declare a matched motion; the adaptive filters' first Sage-Husa step (d = 1)
+#: replaces q-hat by one noisy sample, which leaves them overconfident (NEES ~2 n).
+NEES_OPEN = {
+    "variable-dimension": "matched motion (quiescent CV) not declared yet",
+    "input-estimation": "matched motion (quiescent CV) not declared yet",
+    "adaptive-input-estimation": "adaptive q-hat overconfident; matched motion not declared yet",
+    "kalman-adaptive": "adaptive q-hat overconfident from its first one-sample step",
+}
+
+
+def nees_cases():
+    cases = conformance_cases(lambda f: f.capabilities.has_covariance and not is_mixture(f))
+    return [pytest.param(*c.values, id=c.id, marks=pytest.mark.xfail(strict=True, reason=NEES_OPEN[c.values[0]]))
+            if c.values[0] in NEES_OPEN else c for c in cases]
+
+
+@pytest.mark.parametrize("kind,motion,compiled", nees_cases())
 def test_nees_consistent_on_matched_model(kind, motion, compiled):
     """Two-sided 99 % interval for the mean NEES of M = 200 rows: chi2.ppf([0.005, 0.995], M n) / M,
     e.g. [3.504, 4.534] for n = 4, [5.388, 6.650] for n = 6, [8.246, 9.792] for n = 9.  It holds for
