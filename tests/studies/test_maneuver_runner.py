@@ -56,6 +56,10 @@ def test_polar_measurements_are_consistent_with_their_linearised_covariance():
     assert np.allclose(cart.z - case.truth.position[:, None], 50.0 * standard_noise(11, 6, case.scans))
     with pytest.raises(ValueError, match="sigma > 0"):
         simulate_measurements(case, 2, 1, mode="cartesian")
+    bounded = simulate_measurements(case, 3000, 2, mode="cartesian_uniform", cartesian_sigma_m=100.0)
+    radius = np.linalg.norm(bounded.z - case.truth.position[:, None], axis=-1)
+    assert radius.max() <= 100.0 and np.mean(radius**3) == pytest.approx(100.0**3 / 2, rel=0.02)  # r^3 ~ U(0, 100^3)
+    assert np.array_equal(bounded.R[0, 0], 1e4 * np.eye(3))
 
 
 @pytest.mark.parametrize("order", [2, 3])

@@ -13,7 +13,10 @@ Two measurement modes:
   :func:`skytrack.models.conversion.convert_plots`, evaluated at the measured plot (so R
   varies from run to run: spec 004 §3.5 item 8);
 * ``cartesian`` — ``z = p + v`` with ``v ~ N(0, sigma^2 I)``: a fixed R, identical across runs
-  (E2, E9).
+  (E2, E9 b);
+* ``cartesian_uniform`` — ``v`` uniform in the ball of radius sigma, i.e. in ``E(0, sigma^2 I)``
+  (E9 a, bounded noise); ``R`` is then that bound ``sigma^2 I`` (the noise covariance is
+  ``sigma^2 I / 5``).
 
 Arrays are scan-major: ``z[K, runs, 3]``, ``R[K, runs, 3, 3]``.
 """
@@ -30,7 +33,7 @@ from skytrack.geo.sensors import Sensor
 from skytrack.models.conversion import convert_plots
 from skytrack.studies.maneuver.scenarios import Case, SensorSpec
 
-MODES = ("polar", "cartesian")
+MODES = ("polar", "cartesian", "cartesian_uniform")
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,17 @@ def standard_noise(seed: int, runs: int, scans: int) -> np.ndarray:
     return noise
 
 
+def uniform_ball_noise(seed: int, runs: int, scans: int) -> np.ndarray:
+    """Points uniform in the unit ball ``[K, runs, 3]``; run r's from run r's generator only
+    (direction from 3 normals, radius ``u^(1/3)``)."""
+    noise = np.empty((scans, runs, 3))
+    for r, rng in enumerate(run_generators(seed, runs)):
+        direction = rng.standard_normal((scans, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        noise[:, r, :] = direction * rng.random(scans)[:, None] ** (1.0 / 3.0)
+    return noise
+
+
 def radar_sensor(spec: SensorSpec) -> Sensor:
     """The :class:`~skytrack.geo.sensors.Sensor` (3-D radar, north = +y) of a study sensor."""
     sensor = Sensor(name="study-radar", type="radar-3d", sigma_range_m=spec.sigma_range_m,
@@ -95,12 +109,12 @@ def simulate_measurements(case: Case, runs: int, seed: int, mode: str = "polar",
     """Measurements of ``case`` for ``runs`` Monte Carlo runs (module docstring)."""
     if mode not in MODES:
         raise ValueError(f"measurement mode must be one of {MODES}, got {mode!r}")
-    noise = standard_noise(seed, runs, case.scans)
     if mode == "polar":
-        z, R = polar_measurements(case.truth.position, case.sensor, noise)
+        z, R = polar_measurements(case.truth.position, case.sensor, standard_noise(seed, runs, case.scans))
     else:
         if cartesian_sigma_m is None or not (math.isfinite(cartesian_sigma_m) and cartesian_sigma_m > 0):
             raise ValueError(f"cartesian measurements need sigma > 0, got {cartesian_sigma_m}")
+        noise = standard_noise(seed, runs, case.scans) if mode == "cartesian" else uniform_ball_noise(seed, runs, case.scans)
         z = case.truth.position[:, None, :] + cartesian_sigma_m * noise
         R = np.broadcast_to(cartesian_sigma_m**2 * np.eye(3), (case.scans, runs, 3, 3)).copy()
     return MeasurementSet(z, R, mode, int(seed))

@@ -16,7 +16,8 @@ cut at the next onset and at the end of the case; scans before the filter's star
   fraction of window scans whose mean lies in the two-sided band
   ``[chi2_{N n}^-1(0.025)/N, chi2_{N n}^-1(0.975)/N]`` (N runs of the basis, n = 6);
 * containment rate of set estimates (truth inside E(x, P)) over the window;
-* track-loss rate of the case (each gating mode run), MACs and wall time per update (R22).
+* track-loss rate of the case (each gating mode run), MACs per update (R22; wall time goes to
+  ``timing.csv``), and the manoeuvre's largest normal acceleration ``peak_accel_g`` (|a_perp| / g0).
 
 A case without manoeuvres has one row (``onset = -1``) whose window is the whole case after
 the filter's start (no pre/peak split: ``e_pre`` is then the mean over the whole case).
@@ -33,6 +34,8 @@ import pandas as pd
 from skytrack.analysis.metrics import nees_band
 from skytrack.studies.maneuver.runner import FilterRun
 from skytrack.studies.maneuver.scenarios import Case
+from skytrack.studies.maneuver.segments import normal_acceleration
+from skytrack.studies.maneuver.trajectory import G0
 
 BASES = ("all", "kept")
 NEES_DIM = 6
@@ -148,6 +151,18 @@ def _quantity_metrics(prefix: str, window: Window, rms: np.ndarray, settings: Me
     }
 
 
+def peak_normal_g(case: Case, window: Window) -> float:
+    """Largest ``|a_perp| / g0`` of the truth during the window's manoeuvre (NaN without one)."""
+    if window.onset_index < 0:
+        return math.nan
+    t = case.truth.time
+    during = (t >= window.onset - 1e-9) & (t <= window.onset + window.end + 1e-9)
+    if not during.any():
+        return math.nan
+    a_perp, _ = normal_acceleration(case.truth.velocity[during], case.truth.acceleration[during])
+    return float(a_perp.max() / G0)
+
+
 def basis_mask(run: FilterRun, basis: str) -> np.ndarray:
     if basis == "all":
         return np.ones(run.runs, dtype=bool)
@@ -174,7 +189,8 @@ def evaluate_run(case: Case, run: FilterRun, settings: MetricSettings = MetricSe
             rms = {q: rms_series(err[k], mask) for q, err in (("pos", run.position_error), ("vel", run.velocity_error))}
             row = {"case": case.label, "scenario": case.scenario, "filter": run.label, "kind": run.kind,
                    "gating": run.gating, "basis": basis, "onset": window.onset_index, "t_onset": window.onset,
-                   "maneuver_s": window.end, "runs": run.runs, "runs_basis": n_runs}
+                   "maneuver_s": window.end, "peak_accel_g": peak_normal_g(case, window), "runs": run.runs,
+                   "runs_basis": n_runs}
             row.update({k_: v for k_, v in case.params.items() if isinstance(v, (int, float, str))})
             for q in QUANTITIES:
                 row.update(_quantity_metrics(q, window, rms[q], settings))

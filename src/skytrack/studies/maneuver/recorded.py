@@ -7,9 +7,11 @@ of the radar, which sits at the frame's origin:
 
 * a file with ``x, y, z`` is used as is (the radar at its ENU origin) unless ``origin`` is
   given;
-* a geodetic-only file needs an origin; by default it is the point
-  :data:`DEFAULT_RADAR_OFFSET_M` south of the mean recorded position, at height 0 (the
-  studies' default geometry puts the target about 40 km from the radar).
+* a geodetic-only file is converted with the given ``origin``; without one, the positions are
+  converted in the ENU frame of the recording's mean position and each trajectory is then
+  translated so that the radar (the origin) sits :data:`DEFAULT_RADAR_OFFSET_M` south of the
+  trajectory's own mean horizontal position, at height 0 (the studies' default geometry, a
+  target about 40 km from the radar; a translation keeps the kinematics exact).
 
 Per axis a cubic smoothing spline (:func:`scipy.interpolate.make_smoothing_spline`, penalty
 chosen by generalised cross-validation unless ``smoothing_lam`` is given) is fitted to the
@@ -36,8 +38,6 @@ from skytrack.studies.maneuver.trajectory import Kinematics
 
 #: default distance of the radar south of a geodetic-only recording's mean position (m)
 DEFAULT_RADAR_OFFSET_M = 40_000.0
-#: metres per degree of latitude (spherical approximation; only places the default radar)
-_M_PER_DEG = 111_195.0
 #: a smoothing spline needs at least this many samples
 MIN_SAMPLES = 5
 
@@ -52,8 +52,8 @@ class RecordedTrajectory:
     start_time: float  # time of the first sample in the file's time scale (s)
 
 
-def default_origin(path: str | Path) -> Origin:
-    """The origin :data:`DEFAULT_RADAR_OFFSET_M` south of the mean recorded position, at height 0."""
+def mean_origin(path: str | Path) -> Origin:
+    """The mean recorded latitude and longitude, at height 0."""
     frame, _ = load_table(path)
     for lat_name, lon_name in (("lat", "lon"), ("latitude", "longitude")):
         if lat_name in frame.columns and lon_name in frame.columns:
@@ -61,7 +61,7 @@ def default_origin(path: str | Path) -> Origin:
             lon = pd.to_numeric(frame[lon_name], errors="coerce").to_numpy(dtype=float)
             ok = np.isfinite(lat) & np.isfinite(lon)
             if ok.any():
-                return Origin(float(np.mean(lat[ok])) - DEFAULT_RADAR_OFFSET_M / _M_PER_DEG, float(np.mean(lon[ok])), 0.0)
+                return Origin(float(np.mean(lat[ok])), float(np.mean(lon[ok])), 0.0)
     raise ValueError(f"{path}: no lat/lon positions to place a default radar origin; give recorded.origin in --config")
 
 
@@ -106,8 +106,9 @@ def load_recorded(
     Segments shorter than ``min_duration_s`` or with fewer than :data:`MIN_SAMPLES` samples
     are skipped; at most ``max_trajectories`` (in file order) are kept.
     """
-    if origin is None and not _has_enu(path):
-        origin = default_origin(path)
+    place_radar = origin is None and not _has_enu(path)
+    if place_radar:
+        origin = mean_origin(path)
     truth = read_truth(path, origin=origin)
     out: list[RecordedTrajectory] = []
     for (target, segment), rows in truth.groupby(["target_id", "segment"], sort=False):
@@ -115,7 +116,11 @@ def load_recorded(
         t = rows["time"].to_numpy(dtype=float)
         if t.size < MIN_SAMPLES or t[-1] - t[0] < min_duration_s:
             continue
-        kin = smooth_kinematics(t, rows[["x", "y", "z"]].to_numpy(dtype=float), dt, smoothing_lam)
+        position = rows[["x", "y", "z"]].to_numpy(dtype=float)
+        if place_radar:
+            centre = position.mean(axis=0)
+            position = position - np.array([centre[0], centre[1] - DEFAULT_RADAR_OFFSET_M, 0.0])
+        kin = smooth_kinematics(t, position, dt, smoothing_lam)
         out.append(RecordedTrajectory(f"{target}/{segment}", kin, maneuver_segments(kin.time, kin.velocity, kin.acceleration, rule),
                                       float(t[0])))
         if max_trajectories is not None and len(out) >= max_trajectories:

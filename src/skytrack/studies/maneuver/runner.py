@@ -167,6 +167,17 @@ def truth_state(case: Case, order: int) -> np.ndarray:
     return x
 
 
+def quadratic_form(e: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``e^T P^-1 e`` per row through a batched Cholesky factor; when some P is not positive definite,
+    :func:`skytrack.analysis.metrics.nees` takes over (NaN for those rows)."""
+    try:
+        L = np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        return nees(e, P)[0]
+    w = np.linalg.solve(L, e[..., None])[..., 0]
+    return np.einsum("ri,ri->r", w, w)
+
+
 class _Cost:
     """Multiply-adds (``linalg.counting``) and wall seconds of the filter steps of one scan."""
 
@@ -295,10 +306,10 @@ def run_filter(filt: BatchFilter, case: Case, meas: MeasurementSet, *, label: st
         pos_err[k] = err[:, pos]
         vel_err[k] = err[:, pos + 1]
         if is_set:
-            values, valid = nees(err, out.P)
-            contained[k] = np.where(valid, values <= 1.0 + CONTAINMENT_TOLERANCE, np.nan)
+            values = quadratic_form(err, out.P)
+            contained[k] = np.where(np.isfinite(values), values <= 1.0 + CONTAINMENT_TOLERANCE, np.nan)
         else:
-            nees_pv[k], _ = nees(err[:, pv], out.P[:, pv[:, None], pv[None, :]])
+            nees_pv[k] = quadratic_form(err[:, pv], out.P[:, pv[:, None], pv[None, :]])
         if progress is not None:
             progress(k)
     lost, loss_scan = _loss(~in_gate[FIRST_SCAN:] if options.gating == "off" else ~used[FIRST_SCAN:], options.loss_scans)
