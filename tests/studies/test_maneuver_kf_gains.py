@@ -173,3 +173,17 @@ def test_scenario_file_filters_and_truth_file(tmp_path):
     assert label == "A/0 onset 0" and turn["ratio"] >= 5
     onset = pd.read_csv(tmp_path / "t" / SUMMARY_NAME)["t_onset"].iloc[0]
     assert abs(onset - 30.0) <= 2.0
+
+
+def test_study_help_stays_light():
+    """R24 commands are registered without importing numpy & co (skytrack --help stays fast)."""
+    import subprocess
+    import sys
+
+    code = ("import json, sys\nfrom skytrack.cli.main import app\n"
+            "try:\n    app(['study', 'kf-gains', '--help'], standalone_mode=False)\nexcept SystemExit:\n    pass\n"
+            "print(json.dumps(sorted(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded = json.loads(done.stdout.strip().splitlines()[-1])
+    assert "--runs" in done.stdout and "--truth" in done.stdout and "--check" in done.stdout
+    assert not [m for m in loaded if m.split(".")[0] in ("numpy", "pandas", "scipy", "matplotlib", "pyarrow")]
