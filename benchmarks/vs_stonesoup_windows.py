@@ -3,7 +3,8 @@
 A window is a folder with ``plots.parquet`` (or ``.csv``), ``truth.parquet`` (or ``.csv``)
 and ``sensors.json`` in the docs/formats.md layout.  :data:`WINDOWS` lists the named
 windows; each has a role (``tune``: Stone Soup's parameters were chosen on it; ``report``:
-the benchmark's reported windows) and a source:
+the benchmark's reported windows; ``tune-skytrack``: skytrack's own settings were chosen on
+it; ``check``: run by name only) and a source:
 
 * :class:`ScenarioSource`: ``skytrack simulate SCENARIO --seed SEED -o FOLDER`` on a copy of
   the scenario YAML whose ``seed`` (trajectories) is replaced by SEED, so each seed gives
@@ -112,6 +113,12 @@ WINDOWS: tuple[Window, ...] = (
                             ("--start", f"2018-08-01T{start}:00Z", "--duration", str(minutes * 60))))
       for start, minutes, seed in (("09:30", 10, 3001), ("11:20", 20, 3002), ("11:40", 20, 3003),
                                    ("13:40", 10, 3004))),
+    # recorded traffic around Paris: tuning windows of skytrack's own settings (the IMM model set),
+    # never reported and not used by --tune
+    *(Window(f"paris-{start[:2]}{start[3:5]}", "tune-skytrack",
+             ScenarioSource(SCENES / "recorded_paris.yaml", seed,
+                            ("--start", f"2021-10-07T{start}:00Z", "--duration", str(minutes * 60))))
+      for start, minutes, seed in (("12:20", 15, 4001), ("13:30", 15, 4002))),
     # no clutter: checks the Stone Soup side's conversion to the tracks layout (its position
     # RMSE should be near the radar's cross-range error, 125 km x 0.1 deg = 218 m at mid range)
     Window("check-clutter-free", "check",

@@ -230,6 +230,48 @@ def test_all_faults_at_once_add_up():
     assert removed_times(states, cleaned) == [1000.0, 1001.0, 1002.0, 1050.0, 1060.0, 1061.0, 1080.0]
 
 
+def turning_track(rate_deg_s: float, dt: float, n: int, speed: float = 250.0, jitter_m: float = 0.0,
+                  seed: int = 0) -> pd.DataFrame:
+    """A coordinated turn at ``rate_deg_s`` sampled every ``dt`` s, recorded velocity exact, positions
+    with white jitter of ``jitter_m`` per axis (local flat Earth at 48 N)."""
+    states = track(n=n, dt=dt, speed=speed)
+    t = states["time"].to_numpy() - states["time"].iloc[0]
+    omega = np.radians(rate_deg_s)
+    heading = omega * t  # clockwise from north
+    east = speed * (1.0 - np.cos(heading)) / omega if omega else np.zeros(n)
+    north = speed * np.sin(heading) / omega if omega else speed * t
+    noise = np.random.default_rng(seed).normal(0.0, jitter_m, (2, n))
+    states["lat"] = 48.0 + np.degrees((north + noise[1]) / EARTH_RADIUS_M)
+    states["lon"] = 2.0 + np.degrees((east + noise[0]) / (EARTH_RADIUS_M * np.cos(np.radians(48.0))))
+    states["track_deg"] = np.degrees(heading) % 360.0
+    return states
+
+
+def test_a_stale_recorded_velocity_is_replaced_and_counted():
+    """Rows 20-29 repeat an old velocity (499 kt at 165 deg) while the aircraft flies north at
+    200 m/s: their ground speed and track become unknown; no row is removed."""
+    states = track(n=60, dt=10.0)
+    states.loc[20:29, "groundspeed_mps"] = 499 * 0.514444
+    states.loc[20:29, "track_deg"] = 165.0
+    cleaned, report = clean_states(states)
+    only(report)
+    assert report.velocities_replaced == 10
+    unknown = cleaned["groundspeed_mps"].isna().to_numpy()
+    np.testing.assert_array_equal(np.flatnonzero(unknown), np.arange(20, 30))
+    assert cleaned["track_deg"].isna().sum() == 10
+    assert "10 velocities replaced" in str(report)
+
+
+@pytest.mark.parametrize("rate_deg_s,dt,jitter_m", [(3.0, 10.0, 0.0), (3.0, 1.0, 20.0), (0.0, 1.0, 20.0)])
+def test_turns_and_position_jitter_keep_the_recorded_velocity(rate_deg_s, dt, jitter_m):
+    """A 3 deg/s turn at 250 m/s sampled every 10 s, or every second with 20 m position jitter
+    (next-row differences would scatter by ~14 m/s), keeps every recorded velocity: the
+    difference is taken over +-10 s."""
+    cleaned, report = clean_states(turning_track(rate_deg_s, dt, n=int(600 / dt), jitter_m=jitter_m))
+    assert report.velocities_replaced == 0
+    assert cleaned["groundspeed_mps"].notna().all()
+
+
 @pytest.mark.parametrize(
     ("options", "message"),
     [
@@ -237,6 +279,8 @@ def test_all_faults_at_once_add_up():
         ({"max_speed_mps": -1.0}, "max_speed_mps must be > 0"),
         ({"position_tolerance_m": -1.0}, "position_tolerance_m must be >= 0"),
         ({"min_segment_rows": 1}, "min_segment_rows must be >= 2"),
+        ({"max_velocity_mismatch_mps": 0.0}, "max_velocity_mismatch_mps must be > 0"),
+        ({"velocity_baseline_s": -1.0}, "velocity_baseline_s must be >= 0"),
     ],
 )
 def test_invalid_options_are_refused(options, message):

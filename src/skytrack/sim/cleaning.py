@@ -37,6 +37,18 @@ aircraft at once):
    separate truth object ``<icao24>-1``, ``<icao24>-2``, ... (the count is the cuts).
 9. ``short_segment``: segments with fewer than ``min_segment_rows`` rows (nothing to
    interpolate between) are dropped.
+10. ``velocities_replaced``: a recorded horizontal velocity (ground speed and track) that
+   differs from the central difference of the segment's positions about ``+-velocity_baseline_s``
+   away (the nearest rows at least that far; rows closer than that to their segment's ends are
+   not judged) by more than
+   ``max_velocity_mismatch_mps`` is stale or wrong (receivers repeat an old velocity while
+   the position moves on, e.g. 499 kt at 165 deg for an aircraft flying north-west); its
+   ground speed and track become unknown, so the trajectory takes the finite difference
+   there (:mod:`skytrack.sim.recorded_motion`).  Rows are kept; the count is reported.  The
+   baseline keeps position jitter out of the difference (at 1 s sampling, next-row
+   differences of ADS-B positions scatter by tens of m/s), and the threshold is far above
+   what a turn does to it (a chord over +-10 s of a 3 deg/s turn at 250 m/s is 11 m/s shorter
+   than the tangent, in the tangent's direction).
 """
 
 from __future__ import annotations
@@ -74,12 +86,15 @@ class CleaningOptions:
     min_interval_s: float = 0.0
     min_segment_rows: int = 2
     keep_onground: bool = False
+    max_velocity_mismatch_mps: float = 50.0
+    velocity_baseline_s: float = 10.0
 
     def __post_init__(self) -> None:
-        for name in ("max_gap_s", "max_speed_mps", "max_vertical_rate_mps"):
+        for name in ("max_gap_s", "max_speed_mps", "max_vertical_rate_mps", "max_velocity_mismatch_mps"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("position_tolerance_m", "altitude_tolerance_m", "max_outlier_s", "min_interval_s"):
+        for name in ("position_tolerance_m", "altitude_tolerance_m", "max_outlier_s", "min_interval_s",
+                     "velocity_baseline_s"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if self.max_short_run_rows < 0:
@@ -99,6 +114,7 @@ class CleaningReport:
     reordered: int = 0
     removed: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REMOVAL_STEPS, 0))
     altitudes_replaced: int = 0
+    velocities_replaced: int = 0
     gaps: int = 0
     rows_kept: int = 0
     aircraft_kept: int = 0
@@ -109,7 +125,8 @@ class CleaningReport:
         return {
             "rows_read": self.rows_read, "aircraft_read": self.aircraft_read, "reordered": self.reordered,
             **{f"removed_{step}": count for step, count in self.removed.items()},
-            "altitudes_replaced": self.altitudes_replaced, "gaps_cut": self.gaps, "rows_kept": self.rows_kept, "aircraft_kept": self.aircraft_kept,
+            "altitudes_replaced": self.altitudes_replaced, "velocities_replaced": self.velocities_replaced,
+            "gaps_cut": self.gaps, "rows_kept": self.rows_kept, "aircraft_kept": self.aircraft_kept,
             "segments": self.segments,
         }
 
@@ -117,7 +134,8 @@ class CleaningReport:
         removed = ", ".join(f"{step.replace('_', ' ')} {count}" for step, count in self.removed.items())
         return (
             f"{self.rows_read} rows of {self.aircraft_read} aircraft read ({self.reordered} out of time order); "
-            f"removed: {removed}; {self.altitudes_replaced} altitudes replaced; {self.gaps} gaps cut; kept {self.rows_kept} rows in {self.segments} segments "
+            f"removed: {removed}; {self.altitudes_replaced} altitudes replaced; "
+            f"{self.velocities_replaced} velocities replaced; {self.gaps} gaps cut; kept {self.rows_kept} rows in {self.segments} segments "
             f"of {self.aircraft_kept} aircraft"
         )
 
@@ -318,12 +336,50 @@ def clean_states(states: pd.DataFrame, options: CleaningOptions | None = None) -
     segment = (count - count[first_of_aircraft] + 1).astype(np.int64)
 
     df = df.assign(segment=segment)
+    # 10. stale or wrong recorded velocities become unknown (the trajectory differences positions)
+    wrong = _velocity_mismatch(df, new_segment, options.max_velocity_mismatch_mps, options.velocity_baseline_s)
+    report.velocities_replaced = int(wrong.sum())
+    if wrong.any():
+        df.loc[df.index[wrong], ["groundspeed_mps", "track_deg"]] = np.nan
     df["segment_id"] = (df["icao24"].astype(str) + "-" + df["segment"].astype(str)).astype("str")
     out = df.loc[:, list(CLEAN_COLUMNS)].reset_index(drop=True)
     report.rows_kept = len(out)
     report.aircraft_kept = int(out["icao24"].nunique())
     report.segments = int(out["segment_id"].nunique())
     return out, report
+
+
+def _velocity_mismatch(df: pd.DataFrame, segment_start: np.ndarray, limit_mps: float, baseline_s: float) -> np.ndarray:
+    """Rows whose recorded horizontal velocity is more than ``limit_mps`` from the central
+    difference of their segment's positions ``baseline_s`` away on each side (the nearest rows at
+    least that far, clipped to the segment; local flat Earth).  Rows less than ``baseline_s`` from
+    their segment's ends have no centred difference and are not judged."""
+    count = len(df)
+    if count == 0:
+        return np.zeros(0, bool)
+    index = np.arange(count)
+    t = df["time"].to_numpy(dtype=float)
+    segment = np.cumsum(segment_start)
+    first = np.maximum.accumulate(np.where(segment_start, index, 0))
+    segment_end = np.r_[segment_start[1:], True]
+    last = np.minimum.accumulate(np.where(segment_end, index, count - 1)[::-1])[::-1]
+    # rows are sorted by (segment, time): one key orders both
+    key = segment * (2.0 * (np.ptp(t) + 2.0 * baseline_s + 1.0)) + (t - t.min())
+    before = np.clip(np.searchsorted(key, key - baseline_s, side="right") - 1, first, last)
+    after = np.clip(np.searchsorted(key, key + baseline_s, side="left"), first, last)
+    lat = np.radians(df["lat"].to_numpy(dtype=float))
+    lon = np.radians(df["lon"].to_numpy(dtype=float))
+    span = t[after] - t[before]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        east = _EARTH_RADIUS_M * np.cos(lat) * np.angle(np.exp(1j * (lon[after] - lon[before]))) / span
+        north = _EARTH_RADIUS_M * (lat[after] - lat[before]) / span
+    speed = df["groundspeed_mps"].to_numpy(dtype=float)
+    course = np.radians(df["track_deg"].to_numpy(dtype=float))
+    mismatch = np.hypot(speed * np.sin(course) - east, speed * np.cos(course) - north)
+    # only differences reaching the baseline on both sides judge: a lopsided one near a segment's
+    # end is off by up to half the turn over the baseline
+    centred = (t - t[before] >= baseline_s) & (t[after] - t >= baseline_s) & (before < index) & (index < after)
+    return centred & np.isfinite(mismatch) & (span > 0) & (mismatch > limit_mps)
 
 
 def segment_spans(cleaned: pd.DataFrame) -> pd.DataFrame:

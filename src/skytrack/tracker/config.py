@@ -50,7 +50,10 @@ DEFAULT_MANOEUVRE_SCALE = {"cv": 3000.0, "singer": 1.0}
 #: scans).  Civil traffic turns at about 3 deg/s; continuous white-noise acceleration keeps the
 #: modes right for uneven revisit intervals; the noisy CV mode serves the manoeuvre gate.
 TRACKER_MODEL_SET = "cv-ct-noisy"
-TRACKER_MODEL_SET_OPTIONS = {"noise": "continuous", "turn_rate_deg_s": 3.0, "q_cv": 0.2, "q_ct": 1.0}
+TRACKER_MODEL_SET_OPTIONS = {"noise": "continuous", "turn_rate_deg_s": 3.0, "q_cv": 0.2, "q_ct": 1.0,
+                             # the noisy CV mode has the psi filter's manoeuvre PSD, 0.5 x 3000 m^2/s^3:
+                             # weaker, it lets manoeuvring tracks coast out of their gates (recorded traffic)
+                             "noisy_factor": 0.5 * DEFAULT_MANOEUVRE_SCALE["cv"] / 0.2}
 TRACKER_SOJOURN_S = {"cv-ct-noisy": (600.0, 30.0, 30.0, 10.0)}
 MULTIPLE_MODEL_KINDS = ("imm", "static-bank")
 
