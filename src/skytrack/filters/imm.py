@@ -36,6 +36,7 @@ from scipy.special import logsumexp
 
 from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, MixtureState, UpdateStats
+from skytrack.filters.imm_kernels import imm_predict, mode_table
 from skytrack.filters.kalman import KalmanFilter
 
 #: tolerance of the row-sum check of a user transition matrix
@@ -115,7 +116,9 @@ class IMMFilter(BatchFilter):
     initial_probabilities: np.ndarray | None = None
     names: tuple[str, ...] | None = None
     manoeuvre_mode: int | None = None
+    compiled: bool = True
     capabilities: Capabilities = field(init=False)
+    _modes: np.ndarray | None = field(init=False, repr=False)
 
     kind = "imm"
     state_type = MixtureState
@@ -140,6 +143,8 @@ class IMMFilter(BatchFilter):
             raise ValueError(f"names needs one name per mode ({count}), got {self.names}")
         if self.manoeuvre_mode is not None and not 0 <= self.manoeuvre_mode < count:
             raise ValueError(f"manoeuvre_mode must be a mode index in 0..{count - 1}, got {self.manoeuvre_mode}")
+        # the compiled predict covers the tracker's continuous-noise CV and CT modes (imm_kernels)
+        self._modes = mode_table([m.transition for m in self.modes]) if self.compiled else None
         # a fixed matrix mixes over a zero step, so a zero-step prediction is not the identity
         self.capabilities = Capabilities(zero_dt_identity=not self.transition.mixes_at_zero_step,
                                          multiple_model=True)
@@ -188,17 +193,35 @@ class IMMFilter(BatchFilter):
 
     def predict(self, state: MixtureState, dt, context: dict | None = None) -> MixtureState:
         dt = np.broadcast_to(self.transition_dt(dt), (len(state),))
+        forced = bool(context is not None and context.get("manoeuvre") and self.manoeuvre_mode is not None)
+        if self._modes is not None and (context is None or context.get("q_scale") is None):
+            return self._predict_compiled(state, np.ascontiguousarray(dt, dtype=float), forced)
         c, x0, P0 = self.mix(state, dt)
         xs, Ps = np.empty_like(x0), np.empty_like(P0)
         for j, mode in enumerate(self.modes):
             predicted = mode.predict(GaussianState(x0[:, j], P0[:, j]), dt, context)
             xs[:, j], Ps[:, j] = predicted.x, predicted.P
-        if context is not None and context.get("manoeuvre") and self.manoeuvre_mode is not None:
+        if forced:
             # the manoeuvre gate: the prediction of the manoeuvre mode alone; a plot found only this
             # way puts the track in that mode (the counterpart of forcing psi = 1, spec 000 S3)
             c = np.zeros_like(c)
             c[:, self.manoeuvre_mode] = 1.0
         return MixtureState(xs, Ps, c)
+
+    def _predict_compiled(self, state: MixtureState, dt: np.ndarray, forced: bool) -> MixtureState:
+        transition = self.transition
+        if isinstance(transition, SojournTransition):
+            sojourn, fixed = np.array(transition.sojourn_s), np.zeros((self.n_modes, self.n_modes))
+        else:
+            sojourn, fixed = np.zeros(0), transition.matrix
+        force = np.full(len(state), forced)
+        x, P, c = imm_predict(np.ascontiguousarray(state.x), np.ascontiguousarray(state.P),
+                              np.ascontiguousarray(state.mu), dt, self._modes, sojourn, fixed, force,
+                              -1 if self.manoeuvre_mode is None else self.manoeuvre_mode)
+        if linalg.is_counting():
+            K, M, n = state.x.shape
+            linalg.count("imm_predict", K * (M * M + M * M * n + M * M * n * n + M * (n * n + 2 * n**3)))
+        return MixtureState(x, P, c)
 
     def innovate(self, state: MixtureState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
         per_mode = [mode.innovate(GaussianState(state.x[:, j], state.P[:, j]), z, model, context)

@@ -170,7 +170,8 @@ def build_imm(motion: MotionModel, model_set: str | None = None, sojourn_s=None,
     else:
         transition = SojournTransition(tuple(sojourn_s) if sojourn_s is not None else default_sojourn(len(models)))
     return IMMFilter([KalmanFilter(m, compiled=compiled) for m in models], transition, names=tuple(names),
-                     manoeuvre_mode=_noisiest_mode(name, set_options) if manoeuvre_gate else None)
+                     manoeuvre_mode=_noisiest_mode(name, set_options) if manoeuvre_gate else None,
+                     compiled=compiled)
 
 
 def _noisiest_mode(name: str, set_options: dict) -> int | None:

@@ -1,0 +1,223 @@
+"""Compiled (numba, cached) steps of the IMM for the tracker's mode models (spec 004 §3.3 O).
+
+The tracker's model sets (:mod:`skytrack.filters.model_sets` with ``noise="continuous"``) hold
+constant-velocity and coordinated-turn modes on the layout ``[x, vx, y, vy(, z, vz)]``, both
+with continuous white-noise acceleration.  Each mode is described by four numbers
+(:func:`mode_table`): ``omega`` (rad/s; 0 is CV), the horizontal PSD ``q``, the vertical PSD
+``q_z`` and a kind code, so one compiled loop runs every mode of every row:
+
+* :func:`mode_transition` — ``F(dt)`` and ``Q(|dt|)``: CV ``[[1, dt], [0, 1]]`` and
+  ``q [[T^3/3, T^2/2], [T^2/2, T]]`` per axis; CT(omega) the turn of
+  :mod:`skytrack.models.turn` (exact continuous-noise Q, series below ``|wT| < 0.1``) and CV on
+  z.  A negative ``dt`` gives ``F(-|dt|)``, the inverse of ``F(|dt|)`` for both kinds (the
+  reference :class:`~skytrack.filters.kalman.KalmanFilter` takes the pseudo-inverse, equal to it).
+* :func:`imm_predict` — mixing with ``Pi(dt)`` (sojourn times or a fixed matrix, as
+  :mod:`skytrack.filters.imm`) then ``x' = F x0``, ``P' = F P0 F^T + Q`` per mode, and the
+  predicted probabilities ``c``; a row with ``force`` takes ``c`` one-hot on the manoeuvre mode.
+
+They are tested equal to the numpy reference (``IMMFilter(..., compiled=False)``) by the
+conformance suite and ``tests/filters/test_spec004_multiple_model.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from skytrack.models.motion import ConstantVelocityAxis, MotionModel, ScaledAxis
+from skytrack.models.turn import SMALL_TURN, SMALL_TURN_Q, CoordinatedTurn
+
+KIND_CV = 0
+KIND_CT = 1
+
+
+def mode_table(models) -> np.ndarray | None:
+    """``[M, 4]`` rows ``(kind, omega, q, q_z)`` of the modes, or None when a mode is not a
+    continuous-noise CV or CT model on ``[x, vx, y, vy(, z, vz)]`` (then the numpy path runs)."""
+    rows = []
+    ndims = set()
+    for model in models:
+        row = _mode_row(model)
+        if row is None:
+            return None
+        rows.append(row)
+        ndims.add(model.ndim)
+    if len(ndims) != 1 or ndims.pop() not in (2, 3):
+        return None
+    return np.array(rows, dtype=float)
+
+
+def _mode_row(model):
+    if isinstance(model, CoordinatedTurn):
+        if model.order != 2 or model.noise != "continuous":
+            return None
+        vertical = model.sigma_w if model.sigma_w_vertical is None else model.sigma_w_vertical
+        return (KIND_CT, model.omega, model.sigma_w**2, vertical**2)
+    if isinstance(model, MotionModel) and model.order == 2 and model.identical_axes:
+        factor, axis = 1.0, model.axes[0]
+        while isinstance(axis, ScaledAxis):
+            factor *= axis.factor
+            axis = axis.base
+        if type(axis) is ConstantVelocityAxis:
+            return (KIND_CV, 0.0, axis.q * factor, axis.q * factor)
+    return None
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mode_transition(mode, dt, ndim, F, Q):
+    """``F(dt)`` and ``Q(|dt|)`` of one mode (a row of :func:`mode_table`) into ``F``, ``Q`` (n x n)."""
+    n = 2 * ndim
+    step = abs(dt)
+    for i in range(n):
+        for j in range(n):
+            F[i, j] = 0.0
+            Q[i, j] = 0.0
+    q = mode[2]
+    q_z = mode[3]
+    for a in range(ndim):
+        i = 2 * a
+        F[i, i] = 1.0
+        F[i + 1, i + 1] = 1.0
+        F[i, i + 1] = dt
+        qa = q_z if a == 2 else q
+        Q[i, i] = qa * step * step * step / 3.0
+        Q[i, i + 1] = qa * step * step / 2.0
+        Q[i + 1, i] = qa * step * step / 2.0
+        Q[i + 1, i + 1] = qa * step
+    if mode[0] != KIND_CT:
+        return
+    w = mode[1]
+    wt = w * dt
+    if abs(wt) < SMALL_TURN:
+        s_over = dt
+        one_minus_c_over = w * dt * dt / 2.0
+    else:
+        s_over = math.sin(wt) / w
+        one_minus_c_over = 2.0 * math.sin(0.5 * wt) ** 2 / w
+    c = math.cos(wt)
+    s = math.sin(wt)
+    F[0, 1] = s_over
+    F[0, 3] = -one_minus_c_over
+    F[1, 1] = c
+    F[1, 3] = -s
+    F[2, 1] = one_minus_c_over
+    F[2, 3] = s_over
+    F[3, 1] = s
+    F[3, 3] = c
+    wt = w * step
+    x2 = wt * wt
+    if abs(wt) < SMALL_TURN_Q:
+        a_ = step**3 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 / 362880)))
+        b_ = step * step * (1 / 2 - x2 * (1 / 24 - x2 * (1 / 720 - x2 / 40320)))
+    else:
+        a_ = (wt - math.sin(wt)) / w**3
+        b_ = 2.0 * math.sin(0.5 * wt) ** 2 / (w * w)
+    Q[0, 0] = 2.0 * q * a_
+    Q[2, 2] = 2.0 * q * a_
+    Q[0, 1] = q * b_
+    Q[1, 0] = q * b_
+    Q[2, 3] = q * b_
+    Q[3, 2] = q * b_
+    Q[0, 3] = q * w * a_
+    Q[3, 0] = q * w * a_
+    Q[1, 2] = -q * w * a_
+    Q[2, 1] = -q * w * a_
+    Q[0, 2] = 0.0
+    Q[2, 0] = 0.0
+    Q[1, 3] = 0.0
+    Q[3, 1] = 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def transition_row(dt, sojourn, fixed, Pi):
+    """``Pi(dt)`` into ``Pi`` (M x M): sojourn times (``pi_jj = max(0, 1 - |dt|/tau_j)``, the rest
+    even), or the fixed matrix when ``sojourn`` is empty."""
+    M = Pi.shape[0]
+    if len(sojourn) == 0:
+        for i in range(M):
+            for j in range(M):
+                Pi[i, j] = fixed[i, j]
+        return
+    for i in range(M):
+        stay = max(0.0, 1.0 - abs(dt) / sojourn[i])
+        for j in range(M):
+            Pi[i, j] = stay if i == j else (1.0 - stay) / (M - 1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
+    """Mixing and mode-matched prediction of rows ``x[K, M, n]``, ``P[K, M, n, n]``, ``mu[K, M]``
+    by ``dt[K]``; returns the predicted ``x``, ``P`` and ``c`` (one-hot on ``forced_mode`` where
+    ``force``)."""
+    K, M, n = x.shape
+    ndim = n // 2
+    x_out = np.empty_like(x)
+    P_out = np.empty_like(P)
+    c_out = np.empty_like(mu)
+    Pi = np.empty((M, M))
+    weight = np.empty((M, M))
+    x0 = np.empty(n)
+    P0 = np.empty((n, n))
+    F = np.empty((n, n))
+    Q = np.empty((n, n))
+    FP = np.empty((n, n))
+    for k in range(K):
+        transition_row(dt[k], sojourn, fixed, Pi)
+        total = 0.0
+        for j in range(M):
+            acc = 0.0
+            for i in range(M):
+                acc += Pi[i, j] * mu[k, i]
+            c_out[k, j] = acc
+            total += acc
+        for j in range(M):
+            for i in range(M):
+                weight[i, j] = Pi[i, j] * mu[k, i] / max(c_out[k, j], 1e-300)
+        for j in range(M):
+            c_out[k, j] /= total
+        for j in range(M):
+            for a in range(n):
+                acc = 0.0
+                for i in range(M):
+                    acc += weight[i, j] * x[k, i, a]
+                x0[a] = acc
+            for a in range(n):
+                for b in range(n):
+                    acc = 0.0
+                    for i in range(M):
+                        acc += weight[i, j] * (P[k, i, a, b] + (x[k, i, a] - x0[a]) * (x[k, i, b] - x0[b]))
+                    P0[a, b] = acc
+            for a in range(n):
+                for b in range(a + 1, n):
+                    mean = 0.5 * (P0[a, b] + P0[b, a])
+                    P0[a, b] = mean
+                    P0[b, a] = mean
+            mode_transition(modes[j], dt[k], ndim, F, Q)
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += F[a, b] * x0[b]
+                x_out[k, j, a] = acc
+            for a in range(n):
+                for b in range(n):
+                    acc = 0.0
+                    for l in range(n):
+                        acc += F[a, l] * P0[l, b]
+                    FP[a, b] = acc
+            for a in range(n):
+                for b in range(n):
+                    acc = Q[a, b]
+                    for l in range(n):
+                        acc += FP[a, l] * F[b, l]
+                    P_out[k, j, a, b] = acc
+            for a in range(n):
+                for b in range(a + 1, n):
+                    mean = 0.5 * (P_out[k, j, a, b] + P_out[k, j, b, a])
+                    P_out[k, j, a, b] = mean
+                    P_out[k, j, b, a] = mean
+        if force[k]:
+            for j in range(M):
+                c_out[k, j] = 1.0 if j == forced_mode else 0.0
+    return x_out, P_out, c_out
