@@ -67,7 +67,12 @@ def is_mixture(filt) -> bool:
 
 
 def first_model(filt, motion):
-    """The motion model truth is simulated from: a multiple-model filter's first mode, else ``motion``."""
+    """The motion model truth is simulated from: the filter's ``matched_motion`` when it declares one
+    (the model on which it is the consistent filter, e.g. a manoeuvre detector's quiescent model; see
+    :class:`~skytrack.filters.base.BatchFilter`), else a multiple-model filter's first mode, else ``motion``."""
+    matched = getattr(filt, "matched_motion", None)
+    if matched is not None:
+        return matched
     for name in ("modes", "members"):
         if hasattr(filt, name):
             return getattr(filt, name)[0].transition
@@ -361,15 +366,18 @@ def test_recorder_only_observes(kind, motion, compiled):
         assert all(len(v) == len(rows) for v in values.values())
 
 
-#: Kinds whose NEES on the suite's motion is known to fail (issue 7, open; strict: the mark must go
-#: when they pass).  The manoeuvre detectors' own model is their quiescent CV, not the suite's
-#: motion, until they declare a matched motion; the adaptive filters' first Sage-Husa step (d = 1)
-#: replaces q-hat by one noisy sample, which leaves them overconfident (NEES ~2 n).
+#: Kinds whose NEES on their matched model is known to fail (issue 7; strict: the mark must go when
+#: they pass).  The structured Sage-Husa q-hat (spec 004 §3.3 F) is unbiased with the NIS gate's
+#: truncation corrected, but one scan's Frobenius projection of M_Q has a standard deviation of
+#: ~45 q here (sigma_r 30-80 m, T = 2 s; ~150 q on singer3), and b = 0.97 averages ~66 of them, so
+#: q-hat wanders over orders of magnitude (clipped at q_lo) and the plug-in covariance is
+#: overconfident: NEES 5.3 / 8.1 / 21.3 for n = 4 / 6 / 9 (87 for adaptive + IE, whose acceleration
+#: variance is q-hat itself).  The measurements of these 50 scans cannot do better: their Fisher
+#: information bounds the relative standard deviation of any unbiased q estimate at ~1.5 (cv) and
+#: ~0.8 (singer) over the 40 adaptation scans.
 NEES_OPEN = {
-    "variable-dimension": "matched motion (quiescent CV) not declared yet",
-    "input-estimation": "matched motion (quiescent CV) not declared yet",
-    "adaptive-input-estimation": "adaptive q-hat overconfident; matched motion not declared yet",
-    "kalman-adaptive": "adaptive q-hat overconfident from its first one-sample step",
+    "adaptive-input-estimation": "adaptive q-hat too noisy at this signal-to-noise ratio (NEES 87 for n = 9)",
+    "kalman-adaptive": "adaptive q-hat too noisy at this signal-to-noise ratio (NEES ~1.3-2.4 n)",
 }
 
 
@@ -381,13 +389,15 @@ def nees_cases():
 
 @pytest.mark.parametrize("kind,motion,compiled", nees_cases())
 def test_nees_consistent_on_matched_model(kind, motion, compiled):
-    """Two-sided 99 % interval for the mean NEES of M = 200 rows: chi2.ppf([0.005, 0.995], M n) / M,
-    e.g. [3.504, 4.534] for n = 4, [5.388, 6.650] for n = 6, [8.246, 9.792] for n = 9.  It holds for
-    each step's row average; the 50-step time average of these correlated averages has a variance no
-    larger than one step's, so the interval is (slightly) conservative for it.  One fixed seed: the
-    test is deterministic.  (kalman-psi stays consistent: on the matched model psi seldom switches.)"""
+    """Two-sided 95 % interval for the mean NEES of M = 200 rows (issue 7; spec 004 R20's band):
+    chi2.ppf([0.025, 0.975], M n) / M, i.e. [3.618, 4.401] for n = 4, [5.529, 6.489] for n = 6,
+    [8.422, 9.597] for n = 9.  It holds for each step's row average; the 50-step time average of
+    these correlated averages has a variance no larger than one step's, so the interval is
+    (slightly) conservative for it.  Truth comes from :func:`first_model` (a filter's
+    ``matched_motion`` when it declares one).  One fixed seed: the test is deterministic.
+    (kalman-psi stays consistent: on the matched model psi seldom switches.)"""
     value, n = check_nees(kind, motion, compiled)
-    lo, hi = stats.chi2.ppf([0.005, 0.995], 200 * n) / 200
+    lo, hi = stats.chi2.ppf([0.025, 0.975], 200 * n) / 200
     assert lo <= value <= hi, (value, lo, hi)
 
 

@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 from skytrack.core import linalg
-from skytrack.filters.adaptive import AdaptiveKalmanFilter, StructuredAdaptiveState, fading_weight
+from skytrack.filters.adaptive import AdaptiveKalmanFilter, StructuredAdaptiveState, fading_weight, gated_second_moment
 from skytrack.filters.base import ListRecorder
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.registry import build_filter
@@ -49,12 +49,18 @@ def cv_rows(filt, rows, ndim=3, seed=0):
 
 
 # ---------------------------------------------------------------------------- TV16
+def tv16_state():
+    return StructuredAdaptiveState(np.array([[100.0, 10.0]]), np.array([[[300.0, 40.0], [40.0, 20.0]]]),
+                                   np.array([[[400.0]]]), np.array([[[400.0]]]), np.zeros((1, 2, 2)),
+                                   np.array([10]), np.array([3]), np.array([4.0]))
+
+
 def test_tv16_structured_one_step_with_d_forced_to_half():
-    filt = AdaptiveKalmanFilter(dwna(1, 1.0), fixed_weight=0.5)
+    """TV16 is the literal rule: the gate's truncation correction off (with the gate off, or with
+    no gate, the numbers are the same)."""
+    filt = AdaptiveKalmanFilter(dwna(1, 1.0), fixed_weight=0.5, gate_correction=False)
     filt.recorder = ListRecorder()
-    state = StructuredAdaptiveState(np.array([[100.0, 10.0]]), np.array([[[300.0, 40.0], [40.0, 20.0]]]),
-                                    np.array([[[400.0]]]), np.array([[[400.0]]]), np.zeros((1, 2, 2)),
-                                    np.array([10]), np.array([3]), np.array([4.0]))
+    state = tv16_state()
     z = np.array([[135.0]])
     pred, inn, new = step(filt, state, z, np.array([[[1.0]]]))  # the model's R is not used after the first update
     np.testing.assert_allclose(pred.x[0], [110.0, 10.0], atol=1e-9)
@@ -73,6 +79,34 @@ def test_tv16_structured_one_step_with_d_forced_to_half():
     assert new.adaptations[0] == 4 and new.scans[0] == 11
     # S = H P^- H^T + r-hat' = 401 + 312: the update used the new R-hat
     np.testing.assert_allclose(gain[0], 401.0 / 713.0, atol=1e-12)
+    ungated = step(AdaptiveKalmanFilter(dwna(1, 1.0), fixed_weight=0.5, gate=False), tv16_state(), z,
+                   np.array([[[1.0]]]))[2]
+    for name in ("x", "P", "R_hat", "q_hat"):
+        np.testing.assert_allclose(getattr(ungated, name), getattr(new, name), rtol=1e-12)
+
+
+def test_tv16_step_with_the_gate_correction():
+    """The default (gate on, ``gate_correction``): the same step with nu nu^T divided by the gated
+    second moment f = F_{chi2_3}(c) / 0.99, c = chi2_1^-1(0.99) (m = 1), in r-hat and in M_Q, written
+    out with numpy (1e-9 rel)."""
+    filt = AdaptiveKalmanFilter(dwna(1, 1.0), fixed_weight=0.5)
+    new = step(filt, tv16_state(), np.array([[135.0]]), np.array([[[1.0]]]))[2]
+    c = stats.chi2.ppf(0.99, 1)
+    f = stats.chi2.cdf(c, 3) / 0.99
+    assert gated_second_moment(0.99, 1) == pytest.approx(f, rel=1e-14) and 0.92 < f < 0.93
+    F, Q_unit, H = np.array([[1.0, 1.0], [0.0, 1.0]]), np.array([[0.25, 0.5], [0.5, 1.0]]), np.array([[1.0, 0.0]])
+    P = np.array([[300.0, 40.0], [40.0, 20.0]])
+    Pm = F @ P @ F.T + 4.0 * Q_unit
+    nu = 135.0 - 110.0
+    r = 0.5 * 400.0 + 0.5 * (nu**2 / f - Pm[0, 0])
+    K = Pm @ H.T / (Pm[0, 0] + r)
+    A = np.eye(2) - K @ H
+    P_k = A @ Pm @ A.T + r * K @ K.T
+    M_Q = nu**2 / f * K @ K.T + P_k - F @ P @ F.T
+    q = 0.5 * 4.0 + 0.5 * np.sum(M_Q * Q_unit) / np.sum(Q_unit * Q_unit)
+    assert_rel(new.R_hat[0], np.array([[r]]), 1e-9, "r-hat")
+    assert_rel(new.P[0], P_k, 1e-9, "P")
+    assert_rel(new.q_hat, np.array([q]), 1e-9, "q-hat")
 
 
 def test_tv16_fading_weights_for_b_097():
@@ -91,11 +125,87 @@ def test_tv16_fading_weights_for_b_097():
     np.testing.assert_allclose(weights, np.repeat(fading_weight(0.97, np.arange(5))[:, None], 2, axis=1), atol=1e-15)
 
 
+@pytest.mark.parametrize("prior_scans,expected", [
+    (None, fading_weight(0.97, np.arange(5) + 2.0)),  # default: the warm-up's 2 scans
+    (0, fading_weight(0.97, np.arange(5))),  # literal: 1, 0.5076, ...
+    (np.inf, np.full(5, 0.03)),  # the prior as an infinite past: exponential smoothing from q0, R0
+])
+def test_prior_scans_start_the_adaptation_count(prior_scans, expected):
+    """d = (1 - b) / (1 - b^(k' + prior_scans + 1)) on successive adaptation scans (gate off, warm-up 2)."""
+    options = {} if prior_scans is None else {"prior_scans": prior_scans}
+    filt = AdaptiveKalmanFilter(constant_velocity(2, 1.0), warmup=2, gate=False, **options)
+    filt.recorder = ListRecorder()
+    state = cv_rows(filt, 2, ndim=2)
+    rng = np.random.default_rng(8)
+    R = np.broadcast_to(np.eye(2) * 900.0, (2, 2, 2))
+    for _ in range(7):
+        state = step(filt, state, state.x[:, 0::2] + rng.normal(0.0, 30.0, (2, 2)), R)[2]
+    events = filt.recorder.channel("adaptive")
+    weights = np.array([values["weight"][0] for _, values in events if values["adapted"][0]])
+    np.testing.assert_allclose(weights, expected, rtol=1e-12)
+
+
+def test_gated_second_moment():
+    """E[nu nu^T | eps <= chi2_m^-1(p)] = f S with f = F_{chi2_{m+2}}(c) / p: closed form for m = 2
+    (c = -2 ln 0.01, F_4(c) = 1 - e^{-c/2} (1 + c/2)), and a Monte Carlo check for a correlated S, m = 3
+    (200 000 draws; 6 standard errors)."""
+    c = -2.0 * np.log(0.01)
+    assert gated_second_moment(0.99, 2) == pytest.approx((1.0 - 0.01 * (1.0 + c / 2.0)) / 0.99, rel=1e-12)
+    np.testing.assert_allclose(gated_second_moment(0.99, np.array([2, 3])), [0.9534831, 0.9646918], rtol=1e-6)
+    rng = np.random.default_rng(17)
+    S = np.array([[900.0, 300.0, -100.0], [300.0, 1600.0, 200.0], [-100.0, 200.0, 400.0]])
+    nu = rng.standard_normal((200_000, 3)) @ np.linalg.cholesky(S).T
+    eps = np.einsum("ki,ij,kj->k", nu, np.linalg.inv(S), nu)
+    kept = nu[eps <= stats.chi2.ppf(0.99, 3)]
+    second = kept.T @ kept / len(kept)
+    standard_error = np.sqrt((S * S + np.outer(np.diag(S), np.diag(S))) / len(kept))
+    assert np.all(np.abs(second - gated_second_moment(0.99, 3) * S) <= 6.0 * standard_error)
+    assert np.any(np.abs(second - S) > 6.0 * standard_error)  # the truncation is visible at this size
+
+
+def q_projections(gate_correction, runs=2000, scans=60, warmup=20, weight=1e-6, sigma_r=5.0, seed=31):
+    """Frobenius projections of M_Q on adaptation scans of the structured filter on its matched model
+    (1-D CV, q = 1, T = 1 s, R = sigma_r^2, R-hat_0 = R, q-hat_0 = 1), recovered from the q-hat history:
+    with d fixed at ``weight`` the filter stays at the true q and R, and
+    projection = (q-hat_k - (1 - d) q-hat_{k-1}) / d."""
+    motion = constant_velocity(1, 1.0)
+    filt = AdaptiveKalmanFilter(motion, warmup=warmup, fixed_weight=weight, gate_correction=gate_correction, q_lo=1e-6)
+    filt.recorder = ListRecorder()
+    rngs = gens(seed, runs)
+    F, Qs = motion.F(1.0), np.linalg.cholesky(motion.Q(1.0))
+    e0 = np.array([g.standard_normal(2) for g in rngs]) * [100.0, 30.0]
+    w = np.array([g.standard_normal((scans, 2)) for g in rngs])
+    v = np.array([g.standard_normal((scans, 1)) for g in rngs]) * sigma_r
+    truth = np.zeros((runs, 2))
+    state = filt.initiate(truth + e0, np.broadcast_to(np.diag([100.0, 30.0]) ** 2, (runs, 2, 2)).copy())
+    R = np.full((runs, 1, 1), sigma_r**2)
+    for k in range(scans):
+        truth = truth @ F.T + w[:, k] @ Qs.T
+        state = step(filt, state, truth[:, :1] + v[:, k], R, model=ConvertedPositionModel(1, 2))[2]
+    events = filt.recorder.channel("adaptive")
+    q = np.stack([values["q_hat"] for _, values in events])
+    adapted = np.stack([values["adapted"] for _, values in events])[1:]
+    return ((q[1:] - (1.0 - weight) * q[:-1]) / weight)[adapted]
+
+
+def test_gate_correction_makes_the_q_projection_unbiased():
+    """Without the gate <M_Q, Q_unit> / <Q_unit, Q_unit> is unbiased on the matched model (E[K nu nu^T K^T]
+    = K S K^T, P_k = P^- - K S K^T, F P F^T = P^- - Q).  The NIS gate keeps eps <= chi2_1^-1(0.99), which
+    scales E[nu nu^T] by f = 0.925; K S K^T projects to ~6 q here, so the gated mean drops to ~0.64 q.
+    Dividing nu nu^T by f restores it: mean over ~79 000 adaptation scans within 0.08 of 1 (one sample's
+    standard deviation is ~6, so 0.08 is ~4 standard errors)."""
+    corrected = q_projections(True)
+    assert corrected.size > 70_000
+    assert abs(corrected.mean() - 1.0) <= 0.08, corrected.mean()
+    assert q_projections(False).mean() <= 0.8
+
+
 # ---------------------------------------------------------------------------- defaults, configuration
 def test_defaults_are_spec_004_section_6():
     filt = build_filter("kalman-adaptive", constant_velocity(3, 1.0))
     assert (filt.variant, filt.b, filt.warmup, filt.gate, filt.gate_probability) == ("structured", 0.97, 10, True, 0.99)
     assert (filt.r_lo, filt.r_hi, filt.q_lo, filt.q_hi, filt.window) == (0.1, 10.0, 0.01, 2500.0, 20)
+    assert filt.prior_scans == 10.0 and filt.gate_correction  # the prior weighs as the warm-up's scans
     assert build_filter("kalman-adaptive", constant_velocity(3, 1.0), variant="sage_husa_full").gate is False
     assert not filt.capabilities.gain_depends_on_r
 
@@ -105,7 +215,8 @@ def test_defaults_are_spec_004_section_6():
     ({"variant": "sage_husa"}, "variant must be"), ({"r_lo": 2.0, "r_hi": 1.0}, "r_lo"),
     ({"q_lo": 0.0}, "q_lo"), ({"warmup": -1}, "warmup"), ({"window": 0}, "window"),
     ({"fixed_weight": 0.0}, "fixed_weight"), ({"gate_probability": 1.0}, "gate_probability"),
-    ({"q0": -1.0}, "q0"), ({"r_hat0": 4.0}, "r_hat0"),
+    ({"q0": -1.0}, "q0"), ({"r_hat0": 4.0}, "r_hat0"), ({"prior_scans": -1.0}, "prior_scans"),
+    ({"prior_scans": "10"}, "prior_scans"),
 ])
 def test_bad_configuration_names_the_option(options, match):
     with pytest.raises(ValueError, match=match):
@@ -172,9 +283,10 @@ def test_nis_gate_keeps_manoeuvre_innovations_out_of_the_estimates(gate):
 
 
 def test_limits_clip_r_and_q():
-    """First adaptation (d = 1), gate off: a huge innovation puts r-hat at r_hi R_nom and q-hat at q_hi; a
-    zero innovation puts r-hat at r_lo R_nom and q-hat at q_lo."""
-    filt = AdaptiveKalmanFilter(constant_velocity(3, 1.0), warmup=1, gate=False, r_lo=0.2, r_hi=5.0, q_lo=0.05, q_hi=300.0)
+    """First adaptation of the literal rule (prior_scans = 0: d = 1), gate off: a huge innovation puts r-hat
+    at r_hi R_nom and q-hat at q_hi; a zero innovation puts r-hat at r_lo R_nom and q-hat at q_lo."""
+    filt = AdaptiveKalmanFilter(constant_velocity(3, 1.0), warmup=1, gate=False, r_lo=0.2, r_hi=5.0, q_lo=0.05, q_hi=300.0,
+                                prior_scans=0)
     R = np.broadcast_to(np.diag([900.0, 1600.0, 2500.0]), (2, 3, 3))
     state = step(filt, cv_rows(filt, 2), np.zeros((2, 3)), R)[2]
     state.x[:, 0::2] = 0.0
@@ -204,7 +316,8 @@ def test_sage_husa_full_one_step_and_psd_projection():
         state = step(filt, state, state.x[:, 0::2] + rng.normal(0.0, 40.0, (2, 3)), R)[2]
     z = state.x[:, 0::2] + rng.normal(0.0, 40.0, (2, 3))
     pred, inn, new = step(filt, state, z, R)
-    d = fading_weight(0.97, state.adaptations[0])
+    assert filt.prior_scans == 2.0  # the warm-up
+    d = fading_weight(0.97, state.adaptations[0] + 2.0)
     H = np.kron(np.eye(3), [[1.0, 0.0]])
     F, floor = motion.F(1.0), 1e-3 * 900.0
     for r in range(2):

@@ -3,7 +3,8 @@ the paper's item 4a).
 
 Three variants on top of the Kalman filter of §3.3 A (the composed
 :class:`~skytrack.filters.kalman.KalmanFilter`), with the fading weight
-``d = (1 - b) / (1 - b^(k'+1))``, k' = adaptation steps done so far (:func:`fading_weight`):
+``d = (1 - b) / (1 - b^(k'+1))``, k' = adaptation steps done so far plus ``prior_scans``
+(:func:`fading_weight`; below):
 
 * ``"structured"`` (default): diagonal ``R̂`` and ``Q̂ = q̂ Q_unit``.  On an adaptation scan
   ``r̂_i <- clip((1-d) r̂_i + d (nu_i^2 - (H P^- H^T)_ii), r_lo R_nom,ii, r_hi R_nom,ii)``, the update
@@ -24,6 +25,38 @@ is on, only if its NIS ``eps = nu^T S^-1 nu`` with the current R̂ and Q̂ is at
 ``chi2_{n_z}^-1(gate_probability)`` (0.99), so that manoeuvre innovations are not absorbed.  The
 gate is on by default for ``structured`` and ``covariance_matching``, off for ``sage_husa_full``.
 ``fixed_weight`` replaces d by a constant (TV16 forces d = 0.5).
+
+The literal §3.3 F is ``prior_scans=0, gate_correction=False``; skytrack's defaults differ in two
+respects, both for the estimates' statistics on a correctly specified model:
+
+* ``prior_scans`` (default: ``warmup``).  d is the normalised weight of an exponentially fading
+  average; literally k' = 0 at the first adaptation, so d = 1 and that scan's single sample
+  replaces the configured R̂_0 and q̂_0.  One sample is very noisy: ``nu_i^2 - (H P^- H^T)_ii`` has a
+  standard deviation of ~1.4 S_ii, and the Frobenius projection of M_Q one of ~45 q for CV with
+  sigma_r = 50 m, T = 2 s (the K S K^T it contains projects to ~45 q there), so q̂ jumps to q_lo
+  or far above q on the first adaptation.  With ``prior_scans = p`` the count starts at p: the
+  configured values act as p earlier samples of the fading average.  The default counts the
+  warm-up scans, during which the filter ran on R̂_0 and q̂_0 alone: the average then runs over
+  every scan since the start, the warm-up ones contributing the configured values (d = 0.105
+  instead of 1 at the first adaptation for b = 0.97, n_warm = 10).  It is light enough that a
+  wrong start is still forgotten: after study E6's 50 adaptation scans the prior keeps a weight of
+  0.068 (R̂/R_true = 1.15-1.19 from R̂_0 = 4 R in the E6 test, inside E6's [0.6, 1.4]; p above ~25
+  would leave it above 1.4).  ``inf`` gives d = 1 - b from the start (exponential smoothing from the prior).
+* ``gate_correction`` (default True; only with the gate on).  The NIS gate drops the innovations
+  with ``eps > c``; for the kept ones ``E[nu nu^T | eps <= c] = f S`` with
+  ``f = F_{chi2_{m+2}}(c) / gate_probability`` (:func:`gated_second_moment`; 0.925 / 0.953 / 0.965 for
+  m = 1 / 2 / 3 at 0.99), so every ``nu nu^T`` in the estimates (R̂, M_Q, the covariance-matching
+  window) is biased low by 1 - f.  In M_Q that bias multiplies K S K^T, which is many times Q when
+  the measurements are noisy: the gated projection's mean was -1.1 q (CV, sigma_r = 50 m) and
+  -5.7 q (Singer) instead of q, which drives q̂ to q_lo.  With the correction ``nu nu^T`` is divided by
+  f and the projection is unbiased on the matched model (1.02 and 1.00 on the same runs).
+
+Even so the structured q̂ is not NEES-consistent over a few tens of scans when R dominates: one
+projection's standard deviation (~45 q above) shrinks only by sqrt((1-b)/(1+b)) = 0.12 in the
+fading average, and the measurements themselves carry little information on q (their Fisher
+information bounds the relative standard deviation of any unbiased q estimate from 40 scans of 3
+axes at ~1.5 for that CV case).  The plug-in covariance is then overconfident (conformance NEES
+5.3 / 8.1 / 21 for n = 4 / 6 / 9 with these defaults, 9.4 / 21 / 67 with the literal rule).
 
 Measurement noise: the filter uses ``R̂`` instead of the measurement model's R.  A row's ``R̂_0``
 is ``r0_scale`` times the model's R (``context["R"]``) at the row's first update (its diagonal for
@@ -64,6 +97,19 @@ VARIANTS = ("structured", "sage_husa_full", "covariance_matching")
 def fading_weight(b: float, adaptations) -> np.ndarray:
     """Sage-Husa weight ``d = (1 - b) / (1 - b^(k'+1))`` after ``k'`` adaptation steps (1 at k' = 0, -> 1 - b)."""
     return (1.0 - b) / (1.0 - b ** (np.asarray(adaptations, dtype=float) + 1.0))
+
+
+def gated_second_moment(probability: float, m) -> np.ndarray:
+    """``E[eps | eps <= c] / m`` for ``eps ~ chi2_m`` and ``c = chi2_m^-1(probability)``: the factor by
+    which the NIS gate shrinks the mean of ``nu nu^T`` (``E[nu nu^T | gate] = factor S``).
+
+    The whitened innovation is spherically symmetric, so the gate (a bound on its length) scales
+    every direction alike, and ``E[eps 1{eps <= c}] = m F_{m+2}(c)``, hence
+    ``factor = F_{chi2_{m+2}}(c) / probability`` (0.9535 for m = 2, 0.9626 for m = 3 at 0.99).
+    """
+    m = np.asarray(m, dtype=float)
+    c = stats.chi2.ppf(probability, m)
+    return stats.chi2.cdf(c, m + 2.0) / probability
 
 
 def _q_scale(context: dict | None, rows: int) -> np.ndarray:
@@ -163,6 +209,8 @@ class AdaptiveKalmanFilter(BatchFilter):
     window: int = 20
     period: float = 1.0
     fixed_weight: float | None = None
+    prior_scans: float | None = None
+    gate_correction: bool = True
     compiled: bool = True
     kalman: KalmanFilter = field(init=False, repr=False)
 
@@ -188,6 +236,12 @@ class AdaptiveKalmanFilter(BatchFilter):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f"adaptive KF: {name} must be finite and > 0, got {value!r}")
+        if self.prior_scans is None:
+            self.prior_scans = self.warmup
+        if not (isinstance(self.prior_scans, (int, float, np.integer, np.floating)) and self.prior_scans >= 0.0):
+            raise ValueError(f"adaptive KF: prior_scans must be a number >= 0 (inf: constant weight 1 - b), "
+                             f"got {self.prior_scans!r}")
+        self.prior_scans = float(self.prior_scans)
         if self.fixed_weight is not None and not 0.0 < self.fixed_weight <= 1.0:
             raise ValueError(f"adaptive KF: fixed_weight must be in (0, 1], got {self.fixed_weight!r}")
         if self.gate is None:
@@ -257,11 +311,15 @@ class AdaptiveKalmanFilter(BatchFilter):
         HPH = innovation.S - R_prev
         R_nom = np.where((pred.scans == 0)[:, None, None], R_prev, pred.R_nom)
         adapt = pred.scans >= self.warmup
+        inflation = np.ones(rows)
         if self.gate:
             adapt &= innovation.d2 <= stats.chi2.ppf(self.gate_probability, m)
-        d = np.full(rows, float(self.fixed_weight)) if self.fixed_weight is not None else fading_weight(self.b, pred.adaptations)
+            if self.gate_correction:
+                inflation = 1.0 / gated_second_moment(self.gate_probability, m)
+        d = (np.full(rows, float(self.fixed_weight)) if self.fixed_weight is not None
+             else fading_weight(self.b, pred.adaptations + self.prior_scans))
         new = pred.copy()
-        nunu = nu[:, :, None] * nu[:, None, :]
+        nunu = nu[:, :, None] * nu[:, None, :] * inflation[:, None, None]
         if linalg.is_counting():
             linalg.count("innovation_outer", rows * nu.shape[-1] ** 2)
         floor = self.r_floor * np.min(np.diagonal(R_nom, axis1=-2, axis2=-1), axis=-1)
@@ -278,7 +336,7 @@ class AdaptiveKalmanFilter(BatchFilter):
             new.innovations[adapt, slot[adapt]] = nu[adapt]
             new.stored = pred.stored + adapt
             estimated = adapt & (new.stored >= self.window)
-            C_hat = np.einsum("kwi,kwj->kij", new.innovations, new.innovations) / self.window
+            C_hat = np.einsum("kwi,kwj->kij", new.innovations, new.innovations) * (inflation / self.window)[:, None, None]
             if linalg.is_counting():
                 linalg.count("window_covariance", rows * self.window * nu.shape[-1] ** 2)
             R_new = psd_project(C_hat - HPH, floor)
@@ -301,7 +359,7 @@ class AdaptiveKalmanFilter(BatchFilter):
                 new.Q_hat[estimated] = linalg.sandwich(K, C_hat[estimated])
         else:
             gain_nu = updated.x - pred.x
-            M_Q = gain_nu[:, :, None] * gain_nu[:, None, :] + updated.P - (pred.P - pred.Q_acc)
+            M_Q = gain_nu[:, :, None] * gain_nu[:, None, :] * inflation[:, None, None] + updated.P - (pred.P - pred.Q_acc)
             if linalg.is_counting():
                 linalg.count("process_noise_sample", rows * gain_nu.shape[-1] ** 2)
             if self.variant == "structured":

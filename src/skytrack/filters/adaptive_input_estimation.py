@@ -19,11 +19,17 @@ adapt (its ``"adaptive"`` recorder channel then shows ``nis = inf`` for those ro
 
 The acceleration block of the covariance follows input estimation's convention with the current
 ``q^`` as the DWNA variance: ``U + q^ I`` (U = 0 until the first correction, then ``L_s``).
+``propagate_input`` (default True) is input estimation's option: the error of ``u_app`` is a
+consider parameter, propagated into position and velocity with its cross-covariance; the
+adaptive filter's standard update is then turned into the consider (Schmidt) update by keeping
+the acceleration entries and their covariance block of the prediction (for an optimal gain the two
+updates differ only there), and the bank runs with the consider gain.  The adaptive filter's
+Frobenius projection does not see the acceleration entries (``Q_unit`` is zero there).
 
 Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``,
-``record_bank``)
+``record_bank``, ``propagate_input``)
 and of the structured adaptive filter (``b``, ``warmup``, ``gate_probability``, ``r_lo``, ``r_hi``,
-``q_lo``, ``q_hi``, ``q0``, ``r0_scale``, ``fixed_weight``).  Recorder channels: the IE channels
+``q_lo``, ``q_hi``, ``q0``, ``r0_scale``, ``fixed_weight``, ``prior_scans``, ``gate_correction``).  Recorder channels: the IE channels
 (``"detection"``, ``"likelihood"``, ``"bank"``) and the adaptive filter's (``"adaptive"``, ``"gain"``).  Like the
 adaptive filter, the gain follows R^ rather than the model's R after a row's first update
 (``gain_depends_on_r`` is False).
@@ -40,12 +46,18 @@ from skytrack.core import linalg
 from skytrack.filters import adaptive as adaptive_family
 from skytrack.filters import input_estimation as ie_family
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, Recorder, UpdateStats
-from skytrack.filters.variable_dimension import ORDER, acceleration_index, check_order3, position_selector
+from skytrack.filters.variable_dimension import (
+    ORDER,
+    QuiescentAccelerationAxis,
+    acceleration_index,
+    check_order3,
+    position_selector,
+)
 from skytrack.models.motion import MotionModel
 
 #: options of the structured adaptive filter that this family passes on
 ADAPTIVE_OPTIONS = ("b", "warmup", "gate_probability", "r_lo", "r_hi", "q_lo", "q_hi", "q0", "r0_scale",
-                    "fixed_weight")
+                    "fixed_weight", "prior_scans", "gate_correction")
 
 
 @dataclass
@@ -98,6 +110,7 @@ class AdaptiveInputEstimationFilter(BatchFilter):
     adaptive_options: dict = field(default_factory=dict)
     record_bank: bool = False
     compiled: bool = True
+    propagate_input: bool = True
 
     kind = "adaptive-input-estimation"
     capabilities = Capabilities(gain_depends_on_r=False)
@@ -109,7 +122,7 @@ class AdaptiveInputEstimationFilter(BatchFilter):
             raise ValueError(f"adaptive input estimation: unknown options {unknown}; the adaptive filter's are "
                              f"{', '.join(ADAPTIVE_OPTIONS)} (the variant is always 'structured')")
         self.ie = ie_family.InputEstimationFilter(self.ndim, 1.0, self.window, self.p_fa, self.bonferroni, self.threshold,
-                                                  self.input_axes, self.record_bank)
+                                                  self.input_axes, self.record_bank, self.propagate_input)
         self.threshold = self.ie.threshold
         self.adaptive = adaptive_family.AdaptiveKalmanFilter(
             MotionModel([ie_family.AppliedInputAxis(1.0)] * self.ndim), variant="structured",
@@ -131,6 +144,13 @@ class AdaptiveInputEstimationFilter(BatchFilter):
     def state_dim(self) -> int:
         return ORDER * self.ndim
 
+    @property
+    def matched_motion(self) -> MotionModel:
+        """Quiet flight with the adaptive filter's starting noise: DWNA of variance ``q0`` (q^ has
+        nothing to learn), acceleration entry the coming interval's
+        (:class:`~skytrack.filters.variable_dimension.QuiescentAccelerationAxis`)."""
+        return MotionModel([QuiescentAccelerationAxis(float(np.sqrt(self.adaptive.q0)))] * self.ndim)
+
     # -------------------------------------------------------------------- steps
     def initiate(self, x: np.ndarray, P: np.ndarray) -> AdaptiveInputEstimationState:
         """As input estimation: ``u_app`` = the initial acceleration, its cross-covariance dropped."""
@@ -143,10 +163,27 @@ class AdaptiveInputEstimationFilter(BatchFilter):
     def predict(self, state: AdaptiveInputEstimationState, dt, context: dict | None = None) -> AdaptiveInputEstimationState:
         dt = np.broadcast_to(self.transition_dt(dt), (len(state),)).astype(float)
         part = self.adaptive.predict(state.adaptive_part(), dt, context)  # F_cov x, F_cov P F_cov^T + q^ Q_unit
-        _, F_cov, _, G_u = self.ie.transition(dt)
+        F_mean, F_cov, _, G_u = self.ie.transition(dt)
         applied = state.x[:, acceleration_index(self.ndim)[: self.ie.n_u]]
         part.x = part.x + linalg.matvec(G_u, applied)
+        if self.propagate_input:
+            part.P = part.P + self._input_error_propagation(state, F_mean, F_cov)
         return state.with_adaptive(part, bias=self.ie.bank_predict(state.bias, state.live, F_cov, G_u))
+
+    def _input_error_propagation(self, state: AdaptiveInputEstimationState, F_mean, F_cov) -> np.ndarray:
+        """``F_mean X F_mean^T - F_cov X F_cov^T`` with ``X = P - q^ E`` (the covariance of the errors of
+        position, velocity and ``u_app``): what the consider prediction adds to the adaptive filter's.
+        Zero, and not computed, for rows whose ``u_app`` has no error covariance (before their first
+        correction)."""
+        acc = acceleration_index(self.ndim)
+        internal = state.P.copy()
+        internal[:, acc, acc] -= state.q_hat[:, None]
+        extra = np.zeros_like(internal)
+        rows = np.flatnonzero(np.any(internal[:, :, acc] != 0.0, axis=(1, 2)))
+        if len(rows):
+            X = internal[rows]
+            extra[rows] = linalg.sandwich(F_mean[rows], X) - linalg.sandwich(F_cov[rows], X)
+        return extra
 
     def innovate(self, state: AdaptiveInputEstimationState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
         innovation = self.adaptive.innovate(state.adaptive_part(), z, model, context)
@@ -165,17 +202,24 @@ class AdaptiveInputEstimationFilter(BatchFilter):
             handed = dataclasses.replace(innovation, d2=np.where(suspended, np.inf, innovation.d2))
         handed = dataclasses.replace(handed, predicted=pred.adaptive_part())
         new, _ = self.adaptive.update(handed.predicted, z, handed)
+        acc = acceleration_index(self.ndim)
         # the gain the adaptive filter used: S = H P^- H^T + R^ of this scan
         H = innovation.H
         S = innovation.S - innovation.R + new.R_hat
         L = linalg.cholesky(S)
         PHt = linalg.matmul(pred.P, np.swapaxes(H, -1, -2))
         K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
+        if self.propagate_input:
+            # consider update: u_app keeps its value and error covariance (module docstring)
+            K[:, acc, :] = 0.0
+            new.x = new.x.copy()
+            new.x[:, acc] = pred.x[:, acc]
+            new.P = new.P.copy()
+            new.P[:, acc[:, None], acc[None, :]] = pred.P[:, acc[:, None], acc[None, :]]
         A = np.eye(self.state_dim) - linalg.matmul(K, H)
         used = dataclasses.replace(innovation, S=S, chol=L, R=new.R_hat)
         bank = self.ie.bank_update(pred.bias, pred.information, pred.score, pred.live, A, used)
         # the acceleration block is U + q^ I (input_estimation's docstring with sigma_w^2 = q^)
-        acc = acceleration_index(self.ndim)
         P = new.P.copy()
         P[:, acc, acc] += (new.q_hat - pred.q_hat)[:, None]
         x, P, bank, detect = self.ie.detect_and_correct(new.x, P, bank, new.scans, new.q_hat)
@@ -191,8 +235,9 @@ from skytrack.filters.registry import register_filter  # noqa: E402  (after the 
 @register_filter("adaptive-input-estimation")
 def _adaptive_input_estimation(motion: MotionModel, compiled: bool = True, window: int = 20, p_fa: float = 0.01,
                                bonferroni: bool = True, threshold: float | None = None, input_axes: int | None = None,
-                               adapt_always: bool = False, record_bank: bool = False,
+                               adapt_always: bool = False, record_bank: bool = False, propagate_input: bool = True,
                                **adaptive_options) -> AdaptiveInputEstimationFilter:
     """§3.3 L on the axes of an order-3 ``motion`` (only its number of axes is used)."""
     return AdaptiveInputEstimationFilter(check_order3(motion, "adaptive-input-estimation"), window, p_fa, bonferroni,
-                                         threshold, input_axes, adapt_always, adaptive_options, record_bank, compiled)
+                                         threshold, input_axes, adapt_always, adaptive_options, record_bank, compiled,
+                                         propagate_input)

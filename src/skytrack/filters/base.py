@@ -217,7 +217,14 @@ class Capabilities:
 
 
 class BatchFilter(ABC):
-    """A filter family: parameters plus pure steps over :class:`ArrayState` batches."""
+    """A filter family: parameters plus pure steps over :class:`ArrayState` batches.
+
+    Optional attribute ``matched_motion``: a motion model (``F_batch``/``Q_batch``, e.g. a
+    :class:`~skytrack.models.motion.MotionModel`) under which the filter is the optimal/consistent
+    filter, when that is not the motion it was built with -- e.g. a manoeuvre detector built on an
+    order-3 motion whose own model is its quiescent CV.  Consistency checks (the conformance suite's
+    NEES) simulate truth from it when present.
+    """
 
     kind: ClassVar[str] = ""
     capabilities: ClassVar[Capabilities] = Capabilities()

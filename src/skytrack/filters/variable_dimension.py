@@ -38,6 +38,13 @@ mode, the acceleration the DWNA model assumes for the coming interval: zero mean
 acceleration diagonal; F_cv's zero acceleration column keeps it
 out of every position/velocity number, which are exactly those of the spec's CV filter.
 
+Matched motion (``matched_motion``, the conformance suite's truth model): the motion under which
+the quiescent filter is exactly consistent, :class:`QuiescentAccelerationAxis` with
+``sigma = sigma_cv`` on every axis -- DWNA position and velocity whose acceleration entry is the
+acceleration of the coming interval, a fresh N(0, sigma_cv^2) sample at every scan.  VD's CV-mode
+estimate (acceleration 0, variance sigma_cv^2, uncorrelated) is then the exact conditional
+distribution of the truth (false alarms aside).
+
 Measurements: positions only (``H`` selects the positions; e.g.
 :class:`~skytrack.models.converted.ConvertedPositionModel` without range rate), since the
 re-initialisation reads ``z`` as a position.  A backward step (``dt < 0``) uses ``F(dt)`` and
@@ -60,11 +67,11 @@ from skytrack.core import linalg
 from skytrack.filters.alpha_beta_gains import detector_threshold, detector_window
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
 from skytrack.models.embedding import EmbeddedAxis
-from skytrack.models.motion import MotionModel, block_diag_batch
+from skytrack.models.motion import AxisModel, MotionModel, _as_steps, block_diag_batch
 from skytrack.models.polynomial import PolynomialAxis
 
 __all__ = ["detector_threshold", "detector_window", "return_threshold", "onset_reinitialisation",
-           "VariableDimensionFilter", "VariableDimensionState"]
+           "QuiescentAccelerationAxis", "VariableDimensionFilter", "VariableDimensionState"]
 
 
 #: states per axis of the spec 004 manoeuvre filters (position, velocity, acceleration)
@@ -103,6 +110,41 @@ def embedded_axis_models(dt: np.ndarray, sigma_cv: float, sigma_ca: float) -> di
             "Q_ca": ca.Q_batch(step), "G": G * D}
 
 
+@dataclass(frozen=True)
+class QuiescentAccelerationAxis(AxisModel):
+    """One axis of the quiescent (DWNA) model of §3.3 J-L in the m = 3 layout, with the acceleration
+    entry meaning the acceleration of the coming interval: the matched truth model of the manoeuvre
+    detectors (their ``matched_motion``).
+
+    ``x_{k+1} = [p + T v + T^2/2 a_k, v + T a_k, a_{k+1}]`` with ``a_{k+1} ~ N(0, sigma^2)`` fresh at
+    every step: ``F = [[1, T, T^2/2], [0, 1, T], [0, 0, 0]]``, ``Q = diag(0, 0, sigma^2)``.  Position
+    and velocity follow DWNA with ``sigma_w = sigma`` exactly (``g a_k`` with ``g = [T^2/2, T]``), and
+    the acceleration at scan k is independent of everything before it, which is what the
+    filters report in quiet flight (mean 0 or ``u_app``, variance ``sigma^2``, uncorrelated with
+    position and velocity).  A zero step is no interval: ``F(0) = I``, ``Q(0) = 0``.  Steps must be
+    >= 0 (a truth model, not a filter's prediction).
+    """
+
+    sigma: float = 1.0
+    order = ORDER
+
+    def __post_init__(self):
+        if not (np.isfinite(self.sigma) and self.sigma >= 0):
+            raise ValueError(f"quiescent acceleration axis: sigma must be finite and >= 0, got {self.sigma}")
+
+    def F_batch(self, dt) -> np.ndarray:
+        t = _as_steps(dt, allow_zero=True)
+        F = PolynomialAxis(ORDER).F_batch(t)
+        F[..., 2, 2] = np.where(t > 0, 0.0, 1.0)
+        return F
+
+    def Q_batch(self, dt) -> np.ndarray:
+        t = _as_steps(dt, allow_zero=True)
+        Q = np.zeros(t.shape + (ORDER, ORDER))
+        Q[..., 2, 2] = np.where(t > 0, self.sigma**2, 0.0)
+        return Q
+
+
 def stack_axes(block: np.ndarray, ndim: int) -> np.ndarray:
     """The per-axis block ``[K, 3, 3]`` repeated on ``ndim`` axes, axis-major ``[K, 3 ndim, 3 ndim]``."""
     return block_diag_batch([block] * ndim)
@@ -137,11 +179,15 @@ def innovate_linear(state: GaussianState, z: np.ndarray, model, context: dict | 
     return Innovation(nu, S, L, d2, logdet, linalg.gaussian_loglik(d2, logdet, m), m, H, R, state)
 
 
-def kalman_update(x, P, H, R, nu, L):
+def kalman_update(x, P, H, R, nu, L, frozen=None):
     """Gain ``K = P H^T S^-1`` (from the Cholesky factor ``L`` of S) and the Joseph-form update:
-    ``(x, P, K, I - K H)``."""
+    ``(x, P, K, I - K H)``.  ``frozen``: state indices whose gain rows are zero (Schmidt's consider
+    update: those entries keep their value and covariance, their uncertainty still counts in S
+    and in the cross-covariances; the Joseph form is exact for any gain)."""
     PHt = linalg.matmul(P, np.swapaxes(H, -1, -2))
     K = np.swapaxes(linalg.cho_solve(L, np.swapaxes(PHt, -1, -2)), -1, -2)
+    if frozen is not None:
+        K[:, frozen, :] = 0.0
     x_new = x + linalg.matvec(K, nu)
     A = np.eye(x.shape[-1]) - linalg.matmul(K, H)
     return x_new, linalg.sandwich(A, P, linalg.sandwich(K, R)), K, A
@@ -264,6 +310,11 @@ class VariableDimensionFilter(BatchFilter):
     @property
     def state_dim(self) -> int:
         return ORDER * self.ndim
+
+    @property
+    def matched_motion(self) -> MotionModel:
+        """The truth model of quiet flight on which this filter is consistent (module docstring)."""
+        return MotionModel([QuiescentAccelerationAxis(self.sigma_cv)] * self.ndim)
 
     # -------------------------------------------------------------------- initiate
     def initiate(self, x: np.ndarray, P: np.ndarray) -> VariableDimensionState:
