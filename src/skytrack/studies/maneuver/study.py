@@ -219,6 +219,13 @@ class StudyContext:
         self._total += int(units)
         self._report("")
 
+    def advance(self, description: str, units: int = 1) -> None:
+        """Count ``units`` finished units of work (announced by :meth:`expect`) of a study that runs
+        its own loops instead of :meth:`run` / :meth:`compare`, and show ``description``."""
+        self._done += int(units)
+        self._total = max(self._total, self._done)
+        self._report(description)
+
     def _report(self, description: str) -> None:
         if self.progress is not None:
             self.progress(description, self._done, max(self._total, self._done))
