@@ -1,6 +1,8 @@
 """Input estimation with an onset-time bank, spec 004 §3.3 K / R13: TV15 (every number), TV19's IE
-thresholds, the bank rules (fewer than two hypotheses, N_w = 1, end of a manoeuvre), the E3
-detection delay in a 5 g turn and E4's cost (multiply-adds affine in N_w)."""
+thresholds, the bank rules (fewer than two hypotheses, N_w = 1, end of a manoeuvre), the consider
+covariance of the applied input (``propagate_input``) written out with numpy and its NEES on the
+matched model against the literal filter's, the E3 detection delay in a 5 g turn and E4's cost
+(multiply-adds affine in N_w); adaptive + IE (§3.3 L / R14)."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from scipy.linalg import solve_discrete_are
 from skytrack.core import linalg
 from skytrack.filters.base import ListRecorder
 from skytrack.filters.input_estimation import InputEstimationFilter, detection_threshold
+from skytrack.filters.variable_dimension import QuiescentAccelerationAxis
 from skytrack.filters.registry import build_filter
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.motion import constant_velocity, singer
@@ -159,6 +162,100 @@ def test_estimates_are_consistent_on_the_matched_model():
     e = final - (states[-1].x[:, :2] + M * du[:, None])
     P = states[-1].P[:, :2, :2] + L[:, None, None] * M[:, :, None] * M[:, None, :]
     assert abs(np.mean(np.einsum("ki,ki->k", e, np.linalg.solve(P, e[..., None])[..., 0])) - 2.0) <= 0.15
+
+
+# ---------------------------------------------------------------------------- applied input's error
+def test_propagating_the_input_changes_nothing_before_the_first_correction():
+    """Until a correction u_app has no error covariance: the consider filter is the literal one (1e-12)."""
+    zs = noisy_rows(3, 30, seed=4)
+    x0, P0, _, _ = tv15_start()
+    states = [run_1d(InputEstimationFilter(1, window=6, threshold=np.inf, propagate_input=flag), zs.T,
+                     np.repeat(x0, 3, 0), np.repeat(P0, 3, 0))[0] for flag in (True, False)]
+    for a, b in zip(*states):
+        np.testing.assert_allclose(a.x, b.x, rtol=1e-12)
+        np.testing.assert_allclose(a.P, b.P, rtol=1e-12, atol=1e-12)
+
+
+def test_consider_covariance_after_a_correction():
+    """TV15's correction at scan 24 (s = 4, du = 30, L = 3.636582679, M = (3.36218112, 3.12078336)): the
+    corrected state and u_app have the cross-covariance M L (the literal filter: 0).  The next cycle
+    is written out with numpy: P^- = F_ca (P - E) F_ca^T + Q_dwna + E (E: the acceleration entry,
+    sigma_w^2 = 1), x^- = F_ca x, the gain's acceleration row zero (u_app stays 30), Joseph form (1e-9)."""
+    x0, P0, _, _ = tv15_start()
+    zs = tv15_truth(25)
+    zs[-1] += 40.0  # the 25th plot off the truth, so that the update moves the state
+    M, L = np.array([3.36218112, 3.12078336]), 3.636582679
+    literal, _ = run_1d(InputEstimationFilter(1, window=10, threshold=247.0, propagate_input=False), zs[:24], x0, P0)
+    assert np.all(literal[-1].P[0, :2, 2] == 0.0)
+    filt = InputEstimationFilter(1, window=10, threshold=247.0)
+    states, _ = run_1d(filt, zs, x0, P0)
+    assert [int(v["scan"][0]) for _, v in filt.recorder.channel("detection")] == [24]
+    corrected = states[24]
+    np.testing.assert_allclose(corrected.P[0, :2, 2], M * L, rtol=1e-8)
+    np.testing.assert_allclose(corrected.P[0, :2, :2], literal[-1].P[0, :2, :2], rtol=1e-12)
+    F_ca = np.array([[1.0, T, T * T / 2], [0.0, 1.0, T], [0.0, 0.0, 1.0]])
+    g = np.array([T * T / 2, T, 0.0])
+    X = corrected.P[0].copy()
+    X[2, 2] -= 1.0
+    P_pred = F_ca @ X @ F_ca.T + np.outer(g, g)
+    P_pred[2, 2] += 1.0
+    x_pred = F_ca @ corrected.x[0]
+    K = P_pred[:, 0] / (P_pred[0, 0] + R15)
+    K[2] = 0.0
+    A = np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(states[25].x[0], x_pred + K * (zs[24] - x_pred[0]), rtol=1e-9)
+    np.testing.assert_allclose(states[25].P[0], A @ P_pred @ A.T + R15 * np.outer(K, K), rtol=1e-9)
+    assert states[25].x[0, 2] == corrected.x[0, 2] == pytest.approx(30.0, rel=1e-9)
+    # the literal prediction leaves out what u_app's error adds to the position variance
+    literal_pred = F_ca[:2, :2] @ corrected.P[0, :2, :2] @ F_ca[:2, :2].T + np.outer(g[:2], g[:2])
+    assert P_pred[0, 0] > literal_pred[0, 0] + 0.25 * L
+
+
+def matched_model_nees(propagate_input, runs=200, scans=50, dt=2.0, sigma_r=50.0, seed=41):
+    """9-state NEES of IE (defaults: P_fa = 0.01, N_w = 20) averaged over runs and scans on its matched model,
+    written out: DWNA (sigma_w = 1) with the coming interval's acceleration in the acceleration entries."""
+    filt = InputEstimationFilter(3, propagate_input=propagate_input)
+    filt.recorder = ListRecorder()
+    F = np.kron(np.eye(3), [[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 0.0]])
+    prior = np.diag(np.tile([100.0**2, 30.0**2, 1.0], 3))
+    truth, w, v = [], [], []
+    for g in [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(runs)]:
+        truth.append(np.sqrt(np.diag(prior)) * g.standard_normal(9))
+        w.append(g.standard_normal((scans, 3)))
+        v.append(g.standard_normal((scans, 3)) * sigma_r)
+    truth, w, v = map(np.array, (truth, w, v))
+    model = ConvertedPositionModel(3, 3)
+    R = np.broadcast_to(sigma_r**2 * np.eye(3), (runs, 3, 3)).copy()
+    state = filt.initiate(np.zeros((runs, 9)), np.broadcast_to(prior, (runs, 9, 9)).copy())
+    nees = []
+    for k in range(scans):
+        truth = truth @ F.T
+        truth[:, 2::3] = w[:, k]
+        pred = filt.predict(state, np.full(runs, dt))
+        z = truth[:, 0::3] + v[:, k]
+        state, _ = filt.update(pred, z, filt.innovate(pred, z, model, {"R": R}))
+        e = truth - state.x
+        nees.append(np.mean(np.einsum("ki,ki->k", e, np.linalg.solve(state.P, e[..., None])[..., 0])))
+    return float(np.mean(nees)), len(filt.recorder.channel("detection"))
+
+
+def test_false_alarms_leave_only_the_literal_filter_overconfident():
+    """On the matched model every detection is a false alarm.  The literal filter keeps applying the
+    erroneous u_app as exact, so its NEES is above the two-sided 95 % band of 200 runs x 9 states,
+    [8.422, 9.597]; propagating the input's error keeps it inside (seed fixed; the same plots)."""
+    consider, alarms = matched_model_nees(True)
+    literal, _ = matched_model_nees(False)
+    assert alarms >= 5
+    assert 8.422 <= consider <= 9.597, consider
+    assert literal > 9.597, literal
+
+
+def test_matched_motion_of_the_input_estimation_families():
+    filt = build_filter("input-estimation", singer(3, 20.0, 3.0), sigma_w=2.0)
+    assert all(axis == QuiescentAccelerationAxis(2.0) for axis in filt.matched_motion.axes)
+    combined = build_filter("adaptive-input-estimation", singer(2, 20.0, 3.0), q0=25.0)
+    assert combined.matched_motion.ndim == 2
+    assert all(axis == QuiescentAccelerationAxis(5.0) for axis in combined.matched_motion.axes)
 
 
 # ---------------------------------------------------------------------------- bank rules
@@ -337,12 +434,16 @@ def turn_run(filt, runs, seed, onset=40, scans=80, sigma=25.0, order=3):
     return np.array(rms), states
 
 
-def test_adaptive_ie_without_adaptation_is_ie():
+@pytest.mark.parametrize("propagate_input", [True, False])
+def test_adaptive_ie_without_adaptation_is_ie(propagate_input):
     """No adaptation step (warm-up longer than the run, q0 = 1, R^_0 = R): the composition is input
-    estimation with sigma_w = 1, detections included (rel 1e-9)."""
-    plain = InputEstimationFilter(3)
+    estimation with sigma_w = 1, detections included (rel 1e-9).  With ``propagate_input`` the two
+    consider forms (IE's zero gain rows; the adaptive filter's update with the acceleration entries
+    and block restored) agree."""
+    plain = InputEstimationFilter(3, propagate_input=propagate_input)
     plain.recorder = ListRecorder()
-    combined = build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), warmup=10**6)
+    combined = build_filter("adaptive-input-estimation", singer(3, 20.0, 3.0), warmup=10**6,
+                            propagate_input=propagate_input)
     combined.recorder = ListRecorder()
     _, ie_states = turn_run(plain, 8, seed=11)
     _, aie_states = turn_run(combined, 8, seed=11)
