@@ -11,6 +11,8 @@ import importlib
 
 #: study name -> (module, one-line help)
 STUDY_MODULES: dict[str, tuple[str, str]] = {
+    "ab-range": ("skytrack.studies.maneuver.ab_range",
+                 "E1 (P1): the paper's alpha-beta range tracker: noise, lag and track loss over alpha and range acceleration"),
     "kf-gains": ("skytrack.studies.maneuver.kf_gains",
                  "E2 (P2, P3): KF gain histories, alpha-beta-gamma = steady-state KF, KF-CV error in a turn"),
 }
