@@ -15,6 +15,8 @@ STUDY_MODULES: dict[str, tuple[str, str]] = {
                  "E1 (P1): the paper's alpha-beta range tracker: noise, lag and track loss over alpha and range acceleration"),
     "kf-gains": ("skytrack.studies.maneuver.kf_gains",
                  "E2 (P2, P3): KF gain histories, alpha-beta-gamma = steady-state KF, KF-CV error in a turn"),
+    "bounded-noise": ("skytrack.studies.maneuver.bounded_noise",
+                      "E9 (paper item 6): set-membership filter under bounded and Gaussian noise, containment, violations"),
 }
 
 
