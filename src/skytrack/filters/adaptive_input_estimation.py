@@ -25,6 +25,10 @@ adaptive filter's standard update is then turned into the consider (Schmidt) upd
 the acceleration entries and their covariance block of the prediction (for an optimal gain the two
 updates differ only there), and the bank runs with the consider gain.  The adaptive filter's
 Frobenius projection does not see the acceleration entries (``Q_unit`` is zero there).
+``matched_motion`` is input estimation's with ``sigma = sqrt(q0)``; on it the NEES is not
+consistent (87 for 9 states in the conformance suite, 9.09 without adaptation): the adaptive q̂ is
+far too noisy over a few tens of scans (:mod:`~skytrack.filters.adaptive`), and here it is also
+the reported acceleration variance.
 
 Options: those of §3.3 K (``window`` N_w, ``p_fa``, ``bonferroni``, ``threshold``, ``input_axes``,
 ``record_bank``, ``propagate_input``)

@@ -26,7 +26,12 @@ acceleration block and put back after), the gain rows of the acceleration entrie
 is still changed only by corrections), and a correction sets the cross-covariance of the corrected
 state and ``u_app`` to ``M L`` (error ``e0 + M (du - u)`` of the state, ``du - u`` of the input, with
 e0 orthogonal to the innovations that form du).  Until a row's first correction the two forms are
-identical.  On the same runs the NEES is 9.09.
+identical.  On the same runs the NEES is 9.09 (what remains above 9.03 is selection: a false
+alarm's du is picked for its size, so it is larger than L says).
+
+Matched motion (``matched_motion``, the conformance suite's truth model): the quiescent model in
+this layout, :class:`~skytrack.filters.variable_dimension.QuiescentAccelerationAxis` with
+``sigma = sigma_w`` (DWNA whose acceleration entry is the coming interval's, fresh every scan).
 
 Onset bank (per row, arrays ``[rows, N_w, ...]``): hypothesis s says an extra constant input
 started on the transition ``k-s -> k-s+1``.  One hypothesis is created after every update
