@@ -146,13 +146,80 @@ def transition_row(dt, sojourn, fixed, Pi):
             Pi[i, j] = stay if i == j else (1.0 - stay) / (M - 1)
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, Pi, weight, x0, P0, F, Q, FP):
+    """One row of :func:`imm_predict`: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` mixed over ``Pi(dt)``
+    and predicted per mode into ``x_out``, ``P_out``, ``c_out`` (one-hot on ``forced_mode`` when
+    it is >= 0); the other arguments are scratch arrays."""
+    M, n = x.shape
+    ndim = n // 2
+    transition_row(dt, sojourn, fixed, Pi)
+    total = 0.0
+    for j in range(M):
+        acc = 0.0
+        for i in range(M):
+            acc += Pi[i, j] * mu[i]
+        c_out[j] = acc
+        total += acc
+    for j in range(M):
+        for i in range(M):
+            weight[i, j] = Pi[i, j] * mu[i] / max(c_out[j], 1e-300)
+    for j in range(M):
+        c_out[j] /= total
+    for j in range(M):
+        for a in range(n):
+            acc = 0.0
+            for i in range(M):
+                acc += weight[i, j] * x[i, a]
+            x0[a] = acc
+        for a in range(n):
+            for b in range(n):
+                acc = 0.0
+                for i in range(M):
+                    acc += weight[i, j] * (P[i, a, b] + (x[i, a] - x0[a]) * (x[i, b] - x0[b]))
+                P0[a, b] = acc
+        for a in range(n):
+            for b in range(a + 1, n):
+                mean = 0.5 * (P0[a, b] + P0[b, a])
+                P0[a, b] = mean
+                P0[b, a] = mean
+        mode_transition(modes[j], dt, ndim, F, Q)
+        # F of CV and CT is sparse (at most 4 non-zeros per row): its zeros are skipped
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                if F[a, b] != 0.0:
+                    acc += F[a, b] * x0[b]
+            x_out[j, a] = acc
+        for a in range(n):
+            for b in range(n):
+                acc = 0.0
+                for l in range(n):
+                    if F[a, l] != 0.0:
+                        acc += F[a, l] * P0[l, b]
+                FP[a, b] = acc
+        for a in range(n):
+            for b in range(a, n):
+                acc = Q[a, b]
+                for l in range(n):
+                    if F[b, l] != 0.0:
+                        acc += FP[a, l] * F[b, l]
+                P_out[j, a, b] = acc
+        for a in range(n):
+            for b in range(a + 1, n):
+                # the upper triangle computed, as FP F^T is symmetric up to rounding
+                P_out[j, b, a] = P_out[j, a, b]
+    if forced_mode >= 0:
+        for j in range(M):
+            c_out[j] = 1.0 if j == forced_mode else 0.0
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
     """Mixing and mode-matched prediction of rows ``x[K, M, n]``, ``P[K, M, n, n]``, ``mu[K, M]``
     by ``dt[K]``; returns the predicted ``x``, ``P`` and ``c`` (one-hot on ``forced_mode`` where
     ``force``)."""
     K, M, n = x.shape
-    ndim = n // 2
     x_out = np.empty_like(x)
     P_out = np.empty_like(P)
     c_out = np.empty_like(mu)
@@ -164,60 +231,6 @@ def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
     Q = np.empty((n, n))
     FP = np.empty((n, n))
     for k in range(K):
-        transition_row(dt[k], sojourn, fixed, Pi)
-        total = 0.0
-        for j in range(M):
-            acc = 0.0
-            for i in range(M):
-                acc += Pi[i, j] * mu[k, i]
-            c_out[k, j] = acc
-            total += acc
-        for j in range(M):
-            for i in range(M):
-                weight[i, j] = Pi[i, j] * mu[k, i] / max(c_out[k, j], 1e-300)
-        for j in range(M):
-            c_out[k, j] /= total
-        for j in range(M):
-            for a in range(n):
-                acc = 0.0
-                for i in range(M):
-                    acc += weight[i, j] * x[k, i, a]
-                x0[a] = acc
-            for a in range(n):
-                for b in range(n):
-                    acc = 0.0
-                    for i in range(M):
-                        acc += weight[i, j] * (P[k, i, a, b] + (x[k, i, a] - x0[a]) * (x[k, i, b] - x0[b]))
-                    P0[a, b] = acc
-            for a in range(n):
-                for b in range(a + 1, n):
-                    mean = 0.5 * (P0[a, b] + P0[b, a])
-                    P0[a, b] = mean
-                    P0[b, a] = mean
-            mode_transition(modes[j], dt[k], ndim, F, Q)
-            for a in range(n):
-                acc = 0.0
-                for b in range(n):
-                    acc += F[a, b] * x0[b]
-                x_out[k, j, a] = acc
-            for a in range(n):
-                for b in range(n):
-                    acc = 0.0
-                    for l in range(n):
-                        acc += F[a, l] * P0[l, b]
-                    FP[a, b] = acc
-            for a in range(n):
-                for b in range(n):
-                    acc = Q[a, b]
-                    for l in range(n):
-                        acc += FP[a, l] * F[b, l]
-                    P_out[k, j, a, b] = acc
-            for a in range(n):
-                for b in range(a + 1, n):
-                    mean = 0.5 * (P_out[k, j, a, b] + P_out[k, j, b, a])
-                    P_out[k, j, a, b] = mean
-                    P_out[k, j, b, a] = mean
-        if force[k]:
-            for j in range(M):
-                c_out[k, j] = 1.0 if j == forced_mode else 0.0
+        mix_predict_row(x[k], P[k], mu[k], dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
+                        x_out[k], P_out[k], c_out[k], Pi, weight, x0, P0, F, Q, FP)
     return x_out, P_out, c_out

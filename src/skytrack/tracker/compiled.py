@@ -17,6 +17,7 @@ import numpy as np
 from skytrack.association.gnn import MAX_DENSE_CLUSTER
 from skytrack.core.plots import PlotBatch
 from skytrack.filters.base import GaussianState
+from skytrack.filters.imm import IMMFilter, SojournTransition
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.geo.polar import EARTH_RADIUS_M
@@ -24,6 +25,7 @@ from skytrack.models.conversion import ConvertedPlots
 from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batch
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.schedule import SECTOR_MARGIN
+from skytrack.tracker.imm_stage_kernel import stage_imm
 from skytrack.tracker.stage_kernel import stage_cv, stages_cv
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
 
@@ -191,6 +193,46 @@ class CompiledStages:
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows
+
+    def _associate_fused_imm(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots,
+                             manoeuvre: bool):
+        """:meth:`_associate` of an IMM in one compiled call (:func:`skytrack.tracker.imm_stage_kernel.stage_imm`)."""
+        storage, columns = self.bank.storage, self.bank.column_storage
+        modes, sojourn, fixed = self.fused_imm
+        forced = self.filter.manoeuvre_mode if manoeuvre and self.filter.manoeuvre_mode is not None else -1
+        arguments = self._stage_arguments(s, plots, converted)
+        (plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, _, dim, search_scale, margin_s, gate,
+         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, _, _, _, _,
+         two_point, _, _, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
+         clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max) = arguments
+        rows, plot_rows, candidates = stage_imm(
+            tracks, free, storage.x, storage.P, storage.mu, columns["t"], columns["alt_m"], forced, modes, sojourn,
+            fixed, t_ref, plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, dim, search_scale,
+            margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
+            two_point, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
+            clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max,
+        )
+        self.stats["candidate_pairs"] += candidates
+        if manoeuvre:
+            self.stats["manoeuvre_gate_hits"] += len(rows)
+        return rows, plot_rows
+
+
+def fused_imm(filter, association) -> tuple | None:
+    """``(modes, sojourn, fixed)`` for :func:`~skytrack.tracker.imm_stage_kernel.stage_imm` when the
+    compiled IMM stage applies: an IMM whose modes are all continuous-noise CV/CT models
+    (:func:`skytrack.filters.imm_kernels.mode_table`), no recorder, and the compiled GNN association
+    with the d2 or llr scorer."""
+    if not isinstance(filter, IMMFilter) or filter._modes is None or filter.recorder.active:
+        return None
+    if any(mode.recorder.active or mode.form != "joseph" for mode in filter.modes):
+        return None
+    if not (association.compiled and association.scorer in ("d2", "llr") and association.assigner == "gnn"):
+        return None
+    M = filter.n_modes
+    if isinstance(filter.transition, SojournTransition):
+        return filter._modes, np.array(filter.transition.sojourn_s), np.zeros((M, M))
+    return filter._modes, np.zeros(0), np.ascontiguousarray(filter.transition.matrix)
 
 
 def fused_cv_q(filter, association) -> float | None:

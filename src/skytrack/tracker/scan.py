@@ -37,7 +37,7 @@ from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.height import bounded_height
-from skytrack.tracker.compiled import CompiledStages, fused_cv_q
+from skytrack.tracker.compiled import CompiledStages, fused_cv_q, fused_imm
 from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
 from skytrack.tracker.evidence import TrackScoring, ssr_log_ratio_reference
 from skytrack.tracker.initiation import Initiator
@@ -148,6 +148,10 @@ class ScanProcessor(CompiledStages):
         self.fused_q = fused_cv_q(filter, assoc)
         self.fused = [self.fused_q is not None and model.linear and not sensor.is_moving
                       for model, sensor in zip(self.measurements, sensors.sensors)]
+        # the IMM's compiled stage (the rest of its window runs through the composed parts)
+        self.fused_imm = fused_imm(filter, assoc)
+        self.fused_imm_sensor = [self.fused_imm is not None and model.linear and not sensor.is_moving
+                                 for model, sensor in zip(self.measurements, sensors.sensors)]
         self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
         self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
         self._no_psi = np.zeros(1, dtype=bool)
@@ -261,6 +265,8 @@ class ScanProcessor(CompiledStages):
         """Gate, score, assign and update one stage; returns (track rows, plot rows) assigned."""
         if self.fused[s]:
             return self._associate_fused(s, tracks, free, t_ref, plots, converted, manoeuvre)
+        if self.fused_imm_sensor[s]:
+            return self._associate_fused_imm(s, tracks, free, t_ref, plots, converted, manoeuvre)
         bank = self.bank
         dim = self.dim
         context = {"manoeuvre": True} if manoeuvre else None

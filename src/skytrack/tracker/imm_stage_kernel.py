@@ -1,0 +1,350 @@
+"""One association stage of the tracker's IMM in a single compiled call (numba, cached).
+
+:func:`stage_imm` does for an IMM bank (``x[N, M, n]``, ``P[N, M, n, n]``, ``mu[N, M]``, the
+continuous-noise CV/CT modes of :mod:`skytrack.filters.imm_kernels`) what
+:meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from the filter's steps:
+
+1. each track mixed and predicted to its reference time; the moment-matched position and the
+   spread ``sqrt(lambda_max)`` of its covariance bound the candidate search (the compiled grid of
+   :mod:`skytrack.association.grid_kernels`);
+2. each candidate mixed and predicted to its plot's own time; the pair's measurement (a 2-D
+   plot without Mode C re-placed at its track's Mode C altitude, as
+   :func:`skytrack.tracker.kernels.gate_stage_cv` does); the gate on ``d^2`` of the moment-
+   matched prediction (weights ``c``, spread of means included), and the mixture likelihood
+   ``ln sum_j c_j N(nu_j; 0, S_j)`` for the score (spec 004 §3.3 O; the reference's
+   ``innovation.loglik``);
+3. the score gains, costs and the assignment (:func:`skytrack.tracker.stage_kernel.pair_evidence`
+   and :func:`skytrack.association.kernels.assign_clusters`, as for the CV stage);
+4. the chosen pairs updated mode by mode (Joseph form), ``mu_j = c_j L_j / sum_i c_i L_i``, the
+   two-point start of a tentative track's second plot, and the bank's columns.
+
+``forced_mode >= 0`` is the manoeuvre gate: the prediction of that mode alone (``c`` one-hot).
+The composed path with ``IMMFilter`` is the reference; tests hold the two equal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from skytrack.association.grid_kernels import search_grid, spread_classes
+from skytrack.association.kernels import assign_clusters
+from skytrack.filters.imm_kernels import mix_predict_row
+from skytrack.models.conversion_kernels import place_2d
+from skytrack.tracker.evidence import LOG_2PI
+from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym
+from skytrack.tracker.stage_kernel import pair_evidence
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _matched_position(xp, Pp, c, ndim, x_pos, P_pos):
+    """Moment-matched position ``x_pos`` and covariance block ``P_pos`` of predicted modes."""
+    M = xp.shape[0]
+    for a in range(ndim):
+        acc = 0.0
+        for j in range(M):
+            acc += c[j] * xp[j, 2 * a]
+        x_pos[a] = acc
+    for a in range(ndim):
+        for b in range(ndim):
+            acc = 0.0
+            for j in range(M):
+                acc += c[j] * (Pp[j, 2 * a, 2 * b] + (xp[j, 2 * a] - x_pos[a]) * (xp[j, 2 * b] - x_pos[b]))
+            P_pos[a, b] = acc
+    for a in range(ndim):
+        for b in range(a + 1, ndim):
+            mean = 0.5 * (P_pos[a, b] + P_pos[b, a])
+            P_pos[a, b] = mean
+            P_pos[b, a] = mean
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _solve_d2(L, z, x_pos, ndim, w):
+    """``d^2`` and ``ln det S`` from the Cholesky factor ``L`` of ``S`` and the innovation ``z - x_pos``."""
+    total = 0.0
+    logdet = 0.0
+    for a in range(ndim):
+        logdet += 2.0 * np.log(L[a, a])
+        acc = z[a] - x_pos[a]
+        for l in range(a):
+            acc -= L[a, l] * w[l]
+        w[a] = acc / L[a, a]
+        total += w[a] * w[a]
+    return total, logdet
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref,
+                   plot_time_all, plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, ndim,
+                   search_scale, margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot,
+                   origin):
+    """Gated pairs (indices into ``tracks``/``free``), their ``d^2``, the ``ln det`` that makes
+    ``-(d^2 + ln det + m ln 2 pi) / 2`` the mixture log-likelihood, their measurements and the
+    number of candidates searched."""
+    n_tracks = len(tracks)
+    n_plots = len(free)
+    M = x_all.shape[1]
+    n = 2 * ndim
+    Pi = np.empty((M, M))
+    weight = np.empty((M, M))
+    x0 = np.empty(n)
+    P0 = np.empty((n, n))
+    F = np.empty((n, n))
+    Q = np.empty((n, n))
+    FP = np.empty((n, n))
+    xp = np.empty((M, n))
+    Pp = np.empty((M, n, n))
+    c = np.empty(M)
+    x_pos = np.empty(ndim)
+    P_pos = np.empty((ndim, ndim))
+    # 1. reference prediction and search radius per track
+    ref_pos = np.empty((n_tracks, ndim))
+    sigma_t = np.empty(n_tracks)
+    margin = np.empty(n_tracks)
+    for k in range(n_tracks):
+        row = tracks[k]
+        mix_predict_row(x_all[row], P_all[row], mu_all[row], t_ref[k] - t_all[row], modes, sojourn, fixed,
+                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+        _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
+        speed2 = 0.0
+        for a in range(ndim):
+            ref_pos[k, a] = x_pos[a]
+            v = 0.0
+            for j in range(M):
+                v += c[j] * xp[j, 2 * a + 1]
+            speed2 += v * v
+        sigma_t[k] = np.sqrt(max(_max_eig_sym(P_pos, ndim), 0.0))
+        margin[k] = np.sqrt(speed2) * margin_s + 1.0
+    plot_pos = np.empty((n_plots, 3))
+    sigma_p = np.empty(n_plots)
+    block = np.empty((ndim, ndim))
+    for j in range(n_plots):
+        col = free[j]
+        for a in range(3):
+            plot_pos[j, a] = plot_pos_all[col, a]
+        for a in range(ndim):
+            for b in range(ndim):
+                block[a, b] = plot_cov_all[col, a, b]
+        sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+    out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
+                                  ndim)
+    count = len(out_t)
+    # 2. every candidate at its plot's time: the moment-matched gate and the mixture likelihood
+    pair_pos = np.empty((count, 3))
+    pair_cov = np.empty((count, 3, 3))
+    d2_out = np.empty(count)
+    logdet_out = np.empty(count)
+    kept_t = np.empty(count, np.int64)
+    kept_p = np.empty(count, np.int64)
+    L = np.zeros((ndim, ndim))
+    w = np.empty(ndim)
+    mode_pos = np.empty(ndim)
+    mode_cov = np.empty((ndim, ndim))
+    log_terms = np.empty(M)
+    m = 0
+    for cand in range(count):
+        k = out_t[cand]
+        j = out_p[cand]
+        row = tracks[k]
+        col = free[j]
+        mix_predict_row(x_all[row], P_all[row], mu_all[row], plot_time_all[col] - t_all[row], modes, sojourn, fixed,
+                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+        if replace_height and not np.isfinite(plot_mode_c_all[col]) and np.isfinite(alt_all[row]):
+            place_2d(plot_range_all[col], plot_azimuth_all[col], alt_all[row], sensor_alt, earth, var_r, var_az,
+                     var_h, rot, origin, pair_pos[m], pair_cov[m])
+        else:
+            for a in range(3):
+                pair_pos[m, a] = plot_pos_all[col, a]
+                for b in range(3):
+                    pair_cov[m, a, b] = plot_cov_all[col, a, b]
+        _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
+        if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
+            continue
+        total, _ = _solve_d2(L, pair_pos[m], x_pos, ndim, w)
+        if total > gate:
+            continue
+        best = -np.inf
+        for jm in range(M):
+            if c[jm] <= 0.0:
+                log_terms[jm] = -np.inf
+                continue
+            for a in range(ndim):
+                mode_pos[a] = xp[jm, 2 * a]
+                for b in range(ndim):
+                    mode_cov[a, b] = Pp[jm, 2 * a, 2 * b]
+            if not _innovation_factor(mode_cov, pair_cov[m], ndim, L):
+                log_terms[jm] = -np.inf
+                continue
+            d2_j, logdet_j = _solve_d2(L, pair_pos[m], mode_pos, ndim, w)
+            log_terms[jm] = np.log(c[jm]) - 0.5 * (d2_j + logdet_j + ndim * LOG_2PI)
+            best = max(best, log_terms[jm])
+        if best == -np.inf:
+            continue
+        acc = 0.0
+        for jm in range(M):
+            acc += np.exp(log_terms[jm] - best)
+        loglik = best + np.log(acc)
+        d2_out[m] = total
+        logdet_out[m] = -2.0 * loglik - total - ndim * LOG_2PI
+        kept_t[m] = k
+        kept_p[m] = j
+        m += 1
+    return kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], count
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def update_write_imm(rows, plot_rows, pair_pos, pair_cov, x_all, P_all, mu_all, forced_mode, modes, sojourn, fixed,
+                     ndim, two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, plot_time,
+                     plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain, score, score_max):
+    """Mode-matched updates (Joseph form) and mode probabilities of the chosen pairs, the two-point
+    start of a tentative track's second plot, and the bank's columns, in place."""
+    M = x_all.shape[1]
+    n = 2 * ndim
+    m = ndim
+    Pi = np.empty((M, M))
+    weight = np.empty((M, M))
+    x0 = np.empty(n)
+    P0 = np.empty((n, n))
+    F = np.empty((n, n))
+    Q = np.empty((n, n))
+    FP = np.empty((n, n))
+    xp = np.empty((M, n))
+    Pp = np.empty((M, n, n))
+    c = np.empty(M)
+    K = np.empty((n, m))
+    y = np.empty(m)
+    AP = np.empty((n, n))
+    KR = np.empty((n, m))
+    L = np.zeros((m, m))
+    w = np.empty(m)
+    mode_pos = np.empty(m)
+    mode_cov = np.empty((m, m))
+    log_post = np.empty(M)
+    first_pos = np.empty(m)
+    first_cov = np.empty((m, m))
+    for pair in range(len(rows)):
+        k = rows[pair]
+        j = plot_rows[pair]
+        # the stored estimate before the update (the first point of a two-point start)
+        _matched_position(x_all[k], P_all[k], mu_all[k], ndim, first_pos, first_cov)
+        mix_predict_row(x_all[k], P_all[k], mu_all[k], plot_time[j] - t[k], modes, sojourn, fixed, forced_mode,
+                        xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+        best = -np.inf
+        for jm in range(M):
+            for a in range(m):
+                mode_pos[a] = xp[jm, 2 * a]
+                for b in range(m):
+                    mode_cov[a, b] = Pp[jm, 2 * a, 2 * b]
+            if not _innovation_factor(mode_cov, pair_cov[pair], m, L):
+                log_post[jm] = -np.inf
+                for a in range(n):
+                    x_all[k, jm, a] = xp[jm, a]
+                    for b in range(n):
+                        P_all[k, jm, a, b] = Pp[jm, a, b]
+                continue
+            d2_j, logdet_j = _solve_d2(L, pair_pos[pair], mode_pos, m, w)
+            log_post[jm] = (np.log(c[jm]) if c[jm] > 0.0 else -np.inf) - 0.5 * (d2_j + logdet_j + m * LOG_2PI)
+            best = max(best, log_post[jm])
+            # K = P H^T S^-1 (H selects positions): rows of P's position columns through L L^T
+            for i in range(n):
+                for a in range(m):
+                    acc = Pp[jm, i, 2 * a]
+                    for l in range(a):
+                        acc -= L[a, l] * y[l]
+                    y[a] = acc / L[a, a]
+                for a in range(m - 1, -1, -1):
+                    acc = y[a]
+                    for l in range(a + 1, m):
+                        acc -= L[l, a] * K[i, l]
+                    K[i, a] = acc / L[a, a]
+            for i in range(n):
+                acc = xp[jm, i]
+                for a in range(m):
+                    acc += K[i, a] * (pair_pos[pair, a] - xp[jm, 2 * a])
+                x_all[k, jm, i] = acc
+            for i in range(n):
+                for jj in range(n):
+                    acc = Pp[jm, i, jj]
+                    for a in range(m):
+                        acc -= K[i, a] * Pp[jm, 2 * a, jj]
+                    AP[i, jj] = acc
+            for i in range(n):
+                for a in range(m):
+                    acc = 0.0
+                    for b in range(m):
+                        acc += K[i, b] * pair_cov[pair, b, a]
+                    KR[i, a] = acc - AP[i, 2 * a]
+            for i in range(n):
+                for jj in range(n):
+                    acc = AP[i, jj]
+                    for a in range(m):
+                        acc += KR[i, a] * K[jj, a]
+                    P_all[k, jm, i, jj] = acc
+            for i in range(n):
+                for jj in range(i + 1, n):
+                    mean = 0.5 * (P_all[k, jm, i, jj] + P_all[k, jm, jj, i])
+                    P_all[k, jm, i, jj] = mean
+                    P_all[k, jm, jj, i] = mean
+        total = 0.0
+        for jm in range(M):
+            total += np.exp(log_post[jm] - best)
+        for jm in range(M):
+            mu_all[k, jm] = np.exp(log_post[jm] - best) / total
+        if two_point and n_updates[k] == 1 and status[k] == 0:
+            dt = max(plot_time[j] - t[k], 1e-3)
+            for jm in range(M):
+                for i in range(n):
+                    for jj in range(n):
+                        P_all[k, jm, i, jj] = 0.0
+                for a in range(m):
+                    x_all[k, jm, 2 * a] = pair_pos[pair, a]
+                    x_all[k, jm, 2 * a + 1] = (pair_pos[pair, a] - first_pos[a]) / dt
+                for a in range(m):
+                    for b in range(m):
+                        r2 = pair_cov[pair, a, b]
+                        P_all[k, jm, 2 * a, 2 * b] = r2
+                        P_all[k, jm, 2 * a + 1, 2 * b + 1] = (first_cov[a, b] + r2) / (dt * dt)
+                        P_all[k, jm, 2 * a, 2 * b + 1] = r2 / dt
+                        P_all[k, jm, 2 * a + 1, 2 * b] = pair_cov[pair, b, a] / dt
+        t[k] = plot_time[j]
+        n_updates[k] += 1
+        n_misses[k] = 0
+        score[k] += gain[pair]
+        score_max[k] = max(score_max[k], score[k])
+        z_hint[k] = pair_pos[pair, 2]
+        if np.isfinite(plot_mode_c[j]):
+            alt_m[k] = plot_mode_c[j]
+        if plot_mode3a[j] >= 0:
+            mode3a[k] = plot_mode3a[j]
+        if plot_mode_s[j] >= 0:
+            icao24[k] = plot_mode_s[j]
+        if plot_iff[j] >= 0:
+            iff[k] = plot_iff[j]
+
+
+@njit(cache=True, nogil=True)
+def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref,
+              plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
+              replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, two_point,
+              n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
+              clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
+    """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
+    kt, kp, d2, logdet, position, covariance, candidates = gate_stage_imm(
+        tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref, plot_time,
+        plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
+        replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
+    gain, cost, offered, miss_cost = pair_evidence(
+        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
+        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
+    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
+    pick = offered[np.flatnonzero(chosen)]
+    rows = np.empty(len(pick), np.int64)
+    plot_rows = np.empty(len(pick), np.int64)
+    for c in range(len(pick)):
+        rows[c] = tracks[kt[pick[c]]]
+        plot_rows[c] = free[kp[pick[c]]]
+    update_write_imm(rows, plot_rows, position[pick], covariance[pick], x_all, P_all, mu_all, forced_mode, modes,
+                     sojourn, fixed, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
+                     icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,
+                     score_max)
+    return rows, plot_rows, candidates
