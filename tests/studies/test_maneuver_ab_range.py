@@ -123,6 +123,8 @@ def test_reports_best_alpha_and_manoeuvre_gains(full):
     # ... but its false alarms cost tracks without any manoeuvre at alpha >= 0.3
     assert sum(bb["loss_maneuver"]["n=0"][2:]) > sum(bb["loss_fixed"]["n=0"][2:])
     assert all(rate > 0 for rate in bb["detection_rate_maneuver"]["n=0"][2:])
+    assert all(0 < f < 0.5 for f in bb["maneuver_scan_fraction"]["n=0"])
+    assert bb["maneuver_scan_fraction"]["n=8"][0] > bb["maneuver_scan_fraction"]["n=0"][0]
 
 
 def test_summary_rows_and_closed_forms(full):

@@ -34,7 +34,8 @@ Claims (P1: α, β trade accuracy against robustness to track loss):
 * report ``E1-best-alpha`` — per rule and n, the loss-minimising α (gate on) and the
   RMS-minimising α (filtered range error over all scans and runs, gate off);
 * report ``E1-maneuver-gains`` — loss and RMS with ``maneuver_gains`` vs fixed gains per n and
-  α, the manoeuvre-detection rate of the detector (gate off; at n = 0 a false-alarm rate).
+  α, the fraction of runs with a detection and of scans on manoeuvre gains (gate off; at n = 0
+  false alarms: the detector's P_fa = 0.01 is per scan, so most 300-scan runs have one).
 
 RMS and loss are reported separately (R20): RMS with the gate off over every run, and with the
 gate on over the runs never lost.  Outputs: ``summary.csv`` (part ``sweep``: one row per rule,
@@ -211,7 +212,8 @@ def sweep(ctx: StudyContext, sc: RangeScenario, errors: np.ndarray) -> dict:
         for option in GAINS_OPTIONS:
             shape = (n_count, len(alphas))
             res = {k: np.full(shape, np.nan) for k in ("loss", "loss_time", "rms", "rms_vel", "rms_kept", "kept", "lag_end",
-                                                        "lag_end_noise_free", "peak_mean_error", "detection")}
+                                                        "lag_end_noise_free", "peak_mean_error", "detection",
+                                                        "maneuver_fraction")}
             for j, alpha in enumerate(alphas):
                 beta = beta_of(rule, alpha)
                 label = _label(rule, alpha, option)
@@ -238,7 +240,9 @@ def sweep(ctx: StudyContext, sc: RangeScenario, errors: np.ndarray) -> dict:
                 res["lag_end"][:, j] = mean_err[:, sc.end_scan - 1]
                 res["lag_end_noise_free"][:, j] = noise_free[:, sc.end_scan - 1]
                 res["peak_mean_error"][:, j] = np.abs(mean_err).max(axis=1)
-                res["detection"][:, j] = off.maneuver.reshape(n_count, runs, -1).any(axis=2).mean(axis=1)
+                flags = off.maneuver.reshape(n_count, runs, -1)
+                res["detection"][:, j] = flags.any(axis=2).mean(axis=1)
+                res["maneuver_fraction"][:, j] = flags.mean(axis=(1, 2))
                 rms_t = np.sqrt(np.mean(err**2, axis=1))
                 lost_t = on.lost.reshape(n_count, runs, -1).mean(axis=1)
                 for i, n in enumerate(n_values):
@@ -265,7 +269,8 @@ def sweep(ctx: StudyContext, sc: RangeScenario, errors: np.ndarray) -> dict:
                              "noise_free_error_accel_end_m": res["lag_end_noise_free"][i, j], "peak_mean_error_m": res["peak_mean_error"][i, j],
                              "lag_filtered_closed_form_m": n * G0 * lags.filtered_position,
                              "lag_predicted_closed_form_m": n * G0 * lags.predicted_position,
-                             "gate_halfwidth_m": gate_halfwidth, "detection_rate": res["detection"][i, j]})
+                             "gate_halfwidth_m": gate_halfwidth, "detection_rate": res["detection"][i, j],
+                             "maneuver_scan_fraction": res["maneuver_fraction"][i, j]})
     ctx.add_summary(rows)
     return out
 
@@ -394,13 +399,15 @@ def claims(ctx: StudyContext, noise: dict, lags: dict, results: dict) -> None:
             **{key: {f"n={n:g}": res[name][i].tolist() for i, n in enumerate(n_values)}
                for key, res, name in (("loss_fixed", fixed, "loss"), ("loss_maneuver", man, "loss"),
                                       ("rms_fixed_m", fixed, "rms"), ("rms_maneuver_m", man, "rms"),
-                                      ("detection_rate_maneuver", man, "detection"))},
+                                      ("detection_rate_maneuver", man, "detection"),
+                                      ("maneuver_scan_fraction", man, "maneuver_fraction"))},
             "min_loss_over_alpha": {f"n={n:g}": {"fixed": float(fixed["loss"][i].min()), "maneuver": float(man["loss"][i].min())}
                                     for i, n in enumerate(n_values)},
         }
     ctx.claim_report("E1-maneuver-gains", f"maneuver_gains={p['maneuver_gains']!r} (R3 detector, Kalata gains of 10x the "
-                     "nominal index) vs fixed gains: loss (gate on) and RMS range error (gate off) per n over alpha, and the "
-                     "rate of runs with a manoeuvre detection (at n = 0: false alarms)", compare, "P1")
+                     "nominal index) vs fixed gains: loss (gate on) and RMS range error (gate off) per n over alpha, the rate of "
+                     "runs with a manoeuvre detection and the fraction of scans on manoeuvre gains (gate off; at n = 0 "
+                     "false alarms: P_fa is per scan)", compare, "P1")
 
 
 # ---------------------------------------------------------------------------- figures
