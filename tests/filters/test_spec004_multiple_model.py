@@ -379,3 +379,16 @@ def test_compiled_imm_predict_equals_the_numpy_reference(ndim, options):
     if fast.manoeuvre_mode is not None:
         forced = fast.predict(state, dt, {"manoeuvre": True})
         np.testing.assert_array_equal(forced.mu[:, fast.manoeuvre_mode], 1.0)
+
+
+def test_compiled_moment_matching_equals_the_numpy_reference():
+    rng = np.random.default_rng(21)
+    rows, M, n = 11, 4, 6
+    A = rng.normal(size=(rows, M, n, n))
+    from skytrack.filters.base import MixtureState
+    state = MixtureState(rng.normal(0.0, 1e3, (rows, M, n)), A @ np.swapaxes(A, -1, -2) * 50.0,
+                         rng.dirichlet(np.ones(M), rows))
+    fast, reference = state.estimate(), state.estimate_reference()
+    assert_rel(fast.x, reference.x, 1e-13)
+    assert_rel(fast.P, reference.P, 1e-12)
+    np.testing.assert_array_equal(fast.P, np.swapaxes(fast.P, 1, 2))

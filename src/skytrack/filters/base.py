@@ -30,6 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from skytrack.core import linalg
+from skytrack.filters.imm_kernels import moment_match_rows
 
 
 # ---------------------------------------------------------------------------- states
@@ -105,7 +106,16 @@ class MixtureState(ArrayState):
     mu: np.ndarray
 
     def estimate(self) -> GaussianState:
-        """Moment-matched Gaussian: ``x = sum mu_j x_j``, ``P = sum mu_j (P_j + d_j d_j^T)``."""
+        """Moment-matched Gaussian: ``x = sum mu_j x_j``, ``P = sum mu_j (P_j + d_j d_j^T)``
+        (compiled for float arrays; :meth:`estimate_reference` is the numpy version it is tested against)."""
+        if self.x.dtype == np.float64 and self.P.dtype == np.float64 and self.mu.dtype == np.float64:
+            x, P = moment_match_rows(np.ascontiguousarray(self.x), np.ascontiguousarray(self.P),
+                                     np.ascontiguousarray(self.mu))
+            return GaussianState(x, P)
+        return self.estimate_reference()
+
+    def estimate_reference(self) -> GaussianState:
+        """The numpy moment matching of :meth:`estimate`."""
         x = np.einsum("nm,nmi->ni", self.mu, self.x)
         d = self.x - x[:, None, :]
         P = np.einsum("nm,nmij->nij", self.mu, self.P + d[..., :, None] * d[..., None, :])

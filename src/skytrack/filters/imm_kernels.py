@@ -234,3 +234,26 @@ def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
         mix_predict_row(x[k], P[k], mu[k], dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
                         x_out[k], P_out[k], c_out[k], Pi, weight, x0, P0, F, Q, FP)
     return x_out, P_out, c_out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def moment_match_rows(x, P, mu):
+    """``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + d_j d_j^T)`` per row of ``x[K, M, n]``,
+    ``P[K, M, n, n]``, ``mu[K, M]`` (symmetrised): the compiled :meth:`MixtureState.estimate`."""
+    K, M, n = x.shape
+    x_out = np.empty((K, n))
+    P_out = np.empty((K, n, n))
+    for k in range(K):
+        for a in range(n):
+            acc = 0.0
+            for j in range(M):
+                acc += mu[k, j] * x[k, j, a]
+            x_out[k, a] = acc
+        for a in range(n):
+            for b in range(a, n):
+                acc = 0.0
+                for j in range(M):
+                    acc += mu[k, j] * (P[k, j, a, b] + (x[k, j, a] - x_out[k, a]) * (x[k, j, b] - x_out[k, b]))
+                P_out[k, a, b] = acc
+                P_out[k, b, a] = acc
+    return x_out, P_out
