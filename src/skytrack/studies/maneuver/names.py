@@ -15,6 +15,12 @@ STUDY_MODULES: dict[str, tuple[str, str]] = {
                  "E1 (P1): the paper's alpha-beta range tracker: noise, lag and track loss over alpha and range acceleration"),
     "kf-gains": ("skytrack.studies.maneuver.kf_gains",
                  "E2 (P2, P3): KF gain histories, alpha-beta-gamma = steady-state KF, KF-CV error in a turn"),
+    "ie-bank": ("skytrack.studies.maneuver.ie_bank",
+                "E4 (P8): input estimation, accuracy and multiply-adds against the onset-bank size N_w"),
+    "berg-frame": ("skytrack.studies.maneuver.berg_frame",
+                   "E5 (P9): Berg-type model, full 9x9 KF vs target-frame blocks: cost and error"),
+    "reduced-cost": ("skytrack.studies.maneuver.reduced_cost",
+                     "E8 (P3, P4): per-axis, transformed-gain, piecewise-gain KF and alpha-beta-gamma vs the coupled KF"),
     "bounded-noise": ("skytrack.studies.maneuver.bounded_noise",
                       "E9 (paper item 6): set-membership filter under bounded and Gaussian noise, containment, violations"),
 }
