@@ -5,7 +5,7 @@ Runs are the batch dimension.  Run r draws its noise from its own generator
 measurements depend neither on the number of runs nor on the batching; every filter of a
 study sees the same measurements (common random numbers).
 
-Two measurement modes:
+Measurement modes:
 
 * ``polar`` (default) — the 3-D radar of the case measures range, azimuth and elevation of the
   truth with independent Gaussian errors (sigma_r, sigma_az, sigma_el); each plot is converted
@@ -16,7 +16,14 @@ Two measurement modes:
   (E2, E9 b);
 * ``cartesian_uniform`` — ``v`` uniform in the ball of radius sigma, i.e. in ``E(0, sigma^2 I)``
   (E9 a, bounded noise); ``R`` is then that bound ``sigma^2 I`` (the noise covariance is
-  ``sigma^2 I / 5``).
+  ``sigma^2 I / 5``);
+* ``polar_doppler`` — the ``polar`` plots (the same draws, so the positions equal those of
+  ``polar`` for the same seed) plus the radial velocity ``rdot = (p - p_s) . v / |p - p_s|`` of the
+  truth relative to the static radar with a Gaussian error of ``range_rate_sigma`` (default
+  :data:`DEFAULT_RANGE_RATE_SIGMA`), drawn from each run's generator after its position noise
+  (E10 (1)); ``MeasurementSet.range_rate[K, runs]`` and ``range_rate_sigma`` hold them (None in
+  the other modes).  Filters measure range rate through
+  ``skytrack.models.converted.ConvertedPositionModel(3, order, range_rate_sigma=...)``.
 
 Arrays are scan-major: ``z[K, runs, 3]``, ``R[K, runs, 3, 3]``.
 """
@@ -33,17 +40,22 @@ from skytrack.geo.sensors import Sensor
 from skytrack.models.conversion import convert_plots
 from skytrack.studies.maneuver.scenarios import Case, SensorSpec
 
-MODES = ("polar", "cartesian", "cartesian_uniform")
+MODES = ("polar", "cartesian", "cartesian_uniform", "polar_doppler")
+#: range-rate error st. dev. of the ``polar_doppler`` mode (m/s): a pulse-Doppler radar's order of magnitude
+DEFAULT_RANGE_RATE_SIGMA = 1.0
 
 
 @dataclass(frozen=True)
 class MeasurementSet:
-    """Measurements of one case: ``z[K, runs, 3]`` (ENU m) and ``R[K, runs, 3, 3]``."""
+    """Measurements of one case: ``z[K, runs, 3]`` (ENU m) and ``R[K, runs, 3, 3]``; with ``polar_doppler``
+    also the measured range rate ``range_rate[K, runs]`` (m/s) and its error st. dev."""
 
     z: np.ndarray
     R: np.ndarray
     mode: str
     seed: int
+    range_rate: np.ndarray | None = None
+    range_rate_sigma: float | None = None
 
     @property
     def runs(self) -> int:
@@ -69,6 +81,23 @@ def standard_noise(seed: int, runs: int, scans: int) -> np.ndarray:
     for r, rng in enumerate(run_generators(seed, runs)):
         noise[:, r, :] = rng.standard_normal((scans, 3))
     return noise
+
+
+def radar_noise_with_range_rate(seed: int, runs: int, scans: int) -> tuple[np.ndarray, np.ndarray]:
+    """Standard normal draws ``[K, runs, 3]`` (equal to :func:`standard_noise`) and, drawn after them from
+    the same run generator, ``[K, runs]`` for the range rate."""
+    noise = np.empty((scans, runs, 3))
+    extra = np.empty((scans, runs))
+    for r, rng in enumerate(run_generators(seed, runs)):
+        noise[:, r, :] = rng.standard_normal((scans, 3))
+        extra[:, r] = rng.standard_normal(scans)
+    return noise, extra
+
+
+def true_range_rate(position: np.ndarray, velocity: np.ndarray, sensor_position) -> np.ndarray:
+    """``rdot = (p - p_s) . v / |p - p_s|`` of truth ``[K, 3]`` relative to a static sensor (positive opening)."""
+    rel = np.asarray(position, dtype=float) - np.asarray(sensor_position, dtype=float)
+    return np.einsum("ki,ki->k", rel, np.asarray(velocity, dtype=float)) / np.linalg.norm(rel, axis=-1)
 
 
 def uniform_ball_noise(seed: int, runs: int, scans: int) -> np.ndarray:
@@ -105,12 +134,21 @@ def polar_measurements(position: np.ndarray, sensor: SensorSpec, noise: np.ndarr
 
 
 def simulate_measurements(case: Case, runs: int, seed: int, mode: str = "polar",
-                          cartesian_sigma_m: float | None = None) -> MeasurementSet:
-    """Measurements of ``case`` for ``runs`` Monte Carlo runs (module docstring)."""
+                          cartesian_sigma_m: float | None = None,
+                          range_rate_sigma: float = DEFAULT_RANGE_RATE_SIGMA) -> MeasurementSet:
+    """Measurements of ``case`` for ``runs`` Monte Carlo runs (module docstring); ``range_rate_sigma``
+    (m/s) is used by ``polar_doppler`` only."""
     if mode not in MODES:
         raise ValueError(f"measurement mode must be one of {MODES}, got {mode!r}")
     if mode == "polar":
         z, R = polar_measurements(case.truth.position, case.sensor, standard_noise(seed, runs, case.scans))
+    elif mode == "polar_doppler":
+        if not (math.isfinite(range_rate_sigma) and range_rate_sigma > 0):
+            raise ValueError(f"polar_doppler measurements need range_rate_sigma > 0, got {range_rate_sigma}")
+        noise, extra = radar_noise_with_range_rate(seed, runs, case.scans)
+        z, R = polar_measurements(case.truth.position, case.sensor, noise)
+        rdot = true_range_rate(case.truth.position, case.truth.velocity, case.sensor.position)
+        return MeasurementSet(z, R, mode, int(seed), rdot[:, None] + range_rate_sigma * extra, float(range_rate_sigma))
     else:
         if cartesian_sigma_m is None or not (math.isfinite(cartesian_sigma_m) and cartesian_sigma_m > 0):
             raise ValueError(f"cartesian measurements need sigma > 0, got {cartesian_sigma_m}")

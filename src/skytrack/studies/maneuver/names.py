@@ -23,6 +23,8 @@ STUDY_MODULES: dict[str, tuple[str, str]] = {
                      "E8 (P3, P4): per-axis, transformed-gain, piecewise-gain KF and alpha-beta-gamma vs the coupled KF"),
     "bounded-noise": ("skytrack.studies.maneuver.bounded_noise",
                       "E9 (paper item 6): set-membership filter under bounded and Gaussian noise, containment, violations"),
+    "tracker-synthesis": ("skytrack.studies.maneuver.tracker_synthesis",
+                          "E10 (P12): range rate per motion state, IMM model set per situation, manoeuvre-library IMM"),
 }
 
 
