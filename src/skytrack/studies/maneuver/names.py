@@ -25,6 +25,10 @@ STUDY_MODULES: dict[str, tuple[str, str]] = {
                       "E9 (paper item 6): set-membership filter under bounded and Gaussian noise, containment, violations"),
     "tracker-synthesis": ("skytrack.studies.maneuver.tracker_synthesis",
                           "E10 (P12): range rate per motion state, IMM model set per situation, manoeuvre-library IMM"),
+    "maneuver-compare": ("skytrack.studies.maneuver.maneuver_compare",
+                         "E3 (P5-P7, P11): every filter family on manoeuvring targets: RMS, loss, NEES, detection delay, cost"),
+    "multiple-model": ("skytrack.studies.maneuver.multiple_model",
+                       "E7 (P11, P12): static bank (literal, improved) vs IMM per model set and scenario, switch-off"),
 }
 
 
