@@ -147,10 +147,45 @@ def transition_row(dt, sojourn, fixed, Pi):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, Pi, weight, x0, P0, F, Q, FP):
+def _predict_cv_mode(x0, P0, dt, q, q_z, ndim, x_out, P_out):
+    """``F x0``, ``F P0 F^T + Q`` of a CV mode block by block (F = [[1, dt], [0, 1]] per axis)."""
+    step = abs(dt)
+    for a in range(ndim):
+        i = 2 * a
+        x_out[i] = x0[i] + dt * x0[i + 1]
+        x_out[i + 1] = x0[i + 1]
+    for a in range(ndim):
+        for b in range(a, ndim):
+            i = 2 * a
+            j = 2 * b
+            r00 = P0[i, j] + dt * P0[i + 1, j]
+            r01 = P0[i, j + 1] + dt * P0[i + 1, j + 1]
+            r10 = P0[i + 1, j]
+            r11 = P0[i + 1, j + 1]
+            P_out[i, j] = r00 + r01 * dt
+            P_out[i, j + 1] = r01
+            P_out[i + 1, j] = r10 + r11 * dt
+            P_out[i + 1, j + 1] = r11
+            if a == b:
+                qa = q_z if a == 2 else q
+                P_out[i, j] += qa * step * step * step / 3.0
+                P_out[i, j + 1] += qa * step * step / 2.0
+                P_out[i + 1, j] += qa * step * step / 2.0
+                P_out[i + 1, j + 1] += qa * step
+                # the diagonal block's two off-diagonal entries are equal up to rounding
+                P_out[i + 1, j] = P_out[i, j + 1] = 0.5 * (P_out[i, j + 1] + P_out[i + 1, j])
+            else:
+                for u in range(2):
+                    for v in range(2):
+                        P_out[j + v, i + u] = P_out[i + u, j + v]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, Pi, weight, x0, P0, F, Q, FP,
+                    S, e):
     """One row of :func:`imm_predict`: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` mixed over ``Pi(dt)``
     and predicted per mode into ``x_out``, ``P_out``, ``c_out`` (one-hot on ``forced_mode`` when
-    it is >= 0); the other arguments are scratch arrays."""
+    it is >= 0); the other arguments are scratch arrays (``S[M, n, n]``, ``e[n]`` among them)."""
     M, n = x.shape
     ndim = n // 2
     transition_row(dt, sojourn, fixed, Pi)
@@ -166,25 +201,33 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
             weight[i, j] = Pi[i, j] * mu[i] / max(c_out[j], 1e-300)
     for j in range(M):
         c_out[j] /= total
+    # P0_j = sum_i w_ij (P_i + d_i d_i^T) - e_j e_j^T with d_i, e_j taken from mode 0's mean (the
+    # same algebra as sum_i w_ij (P_i + (x_i - x0_j)(...)^T), a third of the products, and no
+    # cancellation: the offsets between modes are small where the positions are large)
+    for i in range(M):
+        for a in range(n):
+            d = x[i, a] - x[0, a]
+            for b in range(n):
+                S[i, a, b] = P[i, a, b] + d * (x[i, b] - x[0, b])
     for j in range(M):
         for a in range(n):
             acc = 0.0
             for i in range(M):
-                acc += weight[i, j] * x[i, a]
-            x0[a] = acc
+                acc += weight[i, j] * (x[i, a] - x[0, a])
+            e[a] = acc
+            x0[a] = x[0, a] + acc
         for a in range(n):
-            for b in range(n):
+            for b in range(a, n):
                 acc = 0.0
                 for i in range(M):
-                    acc += weight[i, j] * (P[i, a, b] + (x[i, a] - x0[a]) * (x[i, b] - x0[b]))
-                P0[a, b] = acc
-        for a in range(n):
-            for b in range(a + 1, n):
-                mean = 0.5 * (P0[a, b] + P0[b, a])
-                P0[a, b] = mean
-                P0[b, a] = mean
+                    acc += weight[i, j] * S[i, a, b]
+                P0[a, b] = acc - e[a] * e[b]
+                P0[b, a] = P0[a, b]
+        if modes[j, 0] == KIND_CV:
+            _predict_cv_mode(x0, P0, dt, modes[j, 2], modes[j, 3], ndim, x_out[j], P_out[j])
+            continue
         mode_transition(modes[j], dt, ndim, F, Q)
-        # F of CV and CT is sparse (at most 4 non-zeros per row): its zeros are skipped
+        # F of CT is sparse (at most 4 non-zeros per row): its zeros are skipped
         for a in range(n):
             acc = 0.0
             for b in range(n):
@@ -230,9 +273,11 @@ def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
     F = np.empty((n, n))
     Q = np.empty((n, n))
     FP = np.empty((n, n))
+    S = np.empty((M, n, n))
+    e = np.empty(n)
     for k in range(K):
         mix_predict_row(x[k], P[k], mu[k], dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
-                        x_out[k], P_out[k], c_out[k], Pi, weight, x0, P0, F, Q, FP)
+                        x_out[k], P_out[k], c_out[k], Pi, weight, x0, P0, F, Q, FP, S, e)
     return x_out, P_out, c_out
 
 

@@ -79,8 +79,8 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
                    search_scale, margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot,
                    origin):
     """Gated pairs (indices into ``tracks``/``free``), their ``d^2``, the ``ln det`` that makes
-    ``-(d^2 + ln det + m ln 2 pi) / 2`` the mixture log-likelihood, their measurements and the
-    number of candidates searched."""
+    ``-(d^2 + ln det + m ln 2 pi) / 2`` the mixture log-likelihood, their measurements, their
+    predicted modes ``x``, ``P`` and weights ``c``, and the number of candidates searched."""
     n_tracks = len(tracks)
     n_plots = len(free)
     M = x_all.shape[1]
@@ -92,6 +92,8 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     F = np.empty((n, n))
     Q = np.empty((n, n))
     FP = np.empty((n, n))
+    S = np.empty((M, n, n))
+    e = np.empty(n)
     xp = np.empty((M, n))
     Pp = np.empty((M, n, n))
     c = np.empty(M)
@@ -104,7 +106,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     for k in range(n_tracks):
         row = tracks[k]
         mix_predict_row(x_all[row], P_all[row], mu_all[row], t_ref[k] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP, S, e)
         _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
         speed2 = 0.0
         for a in range(ndim):
@@ -136,6 +138,10 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     logdet_out = np.empty(count)
     kept_t = np.empty(count, np.int64)
     kept_p = np.empty(count, np.int64)
+    # each kept pair's predicted modes, so that the update does not predict them again
+    kept_x = np.empty((count, M, n))
+    kept_P = np.empty((count, M, n, n))
+    kept_c = np.empty((count, M))
     L = np.zeros((ndim, ndim))
     w = np.empty(ndim)
     mode_pos = np.empty(ndim)
@@ -148,7 +154,10 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         row = tracks[k]
         col = free[j]
         mix_predict_row(x_all[row], P_all[row], mu_all[row], plot_time_all[col] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+                        forced_mode, kept_x[m], kept_P[m], kept_c[m], Pi, weight, x0, P0, F, Q, FP, S, e)
+        xp = kept_x[m]
+        Pp = kept_P[m]
+        c = kept_c[m]
         if replace_height and not np.isfinite(plot_mode_c_all[col]) and np.isfinite(alt_all[row]):
             place_2d(plot_range_all[col], plot_azimuth_all[col], alt_all[row], sensor_alt, earth, var_r, var_az,
                      var_h, rot, origin, pair_pos[m], pair_cov[m])
@@ -189,28 +198,20 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         kept_t[m] = k
         kept_p[m] = j
         m += 1
-    return kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], count
+    return (kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], kept_x[:m], kept_P[:m],
+            kept_c[:m], count)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def update_write_imm(rows, plot_rows, pair_pos, pair_cov, x_all, P_all, mu_all, forced_mode, modes, sojourn, fixed,
-                     ndim, two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, plot_time,
+def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c, x_all, P_all, mu_all, ndim,
+                     two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, plot_time,
                      plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain, score, score_max):
-    """Mode-matched updates (Joseph form) and mode probabilities of the chosen pairs, the two-point
-    start of a tentative track's second plot, and the bank's columns, in place."""
+    """Mode-matched updates (Joseph form) of the chosen pairs from their predicted modes
+    (``pair_x``, ``pair_P``, weights ``pair_c``, as the gate predicted them), mode probabilities,
+    the two-point start of a tentative track's second plot, and the bank's columns, in place."""
     M = x_all.shape[1]
     n = 2 * ndim
     m = ndim
-    Pi = np.empty((M, M))
-    weight = np.empty((M, M))
-    x0 = np.empty(n)
-    P0 = np.empty((n, n))
-    F = np.empty((n, n))
-    Q = np.empty((n, n))
-    FP = np.empty((n, n))
-    xp = np.empty((M, n))
-    Pp = np.empty((M, n, n))
-    c = np.empty(M)
     K = np.empty((n, m))
     y = np.empty(m)
     AP = np.empty((n, n))
@@ -227,8 +228,9 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, x_all, P_all, mu_all, 
         j = plot_rows[pair]
         # the stored estimate before the update (the first point of a two-point start)
         _matched_position(x_all[k], P_all[k], mu_all[k], ndim, first_pos, first_cov)
-        mix_predict_row(x_all[k], P_all[k], mu_all[k], plot_time[j] - t[k], modes, sojourn, fixed, forced_mode,
-                        xp, Pp, c, Pi, weight, x0, P0, F, Q, FP)
+        xp = pair_x[pair]
+        Pp = pair_P[pair]
+        c = pair_c[pair]
         best = -np.inf
         for jm in range(M):
             for a in range(m):
@@ -329,7 +331,7 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
               n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
               clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
-    kt, kp, d2, logdet, position, covariance, candidates = gate_stage_imm(
+    kt, kp, d2, logdet, position, covariance, pair_x, pair_P, pair_c, candidates = gate_stage_imm(
         tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref, plot_time,
         plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
@@ -343,8 +345,8 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
     for c in range(len(pick)):
         rows[c] = tracks[kt[pick[c]]]
         plot_rows[c] = free[kp[pick[c]]]
-    update_write_imm(rows, plot_rows, position[pick], covariance[pick], x_all, P_all, mu_all, forced_mode, modes,
-                     sojourn, fixed, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
+    update_write_imm(rows, plot_rows, position[pick], covariance[pick], pair_x[pick], pair_P[pick], pair_c[pick], x_all,
+                     P_all, mu_all, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
                      icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,
                      score_max)
     return rows, plot_rows, candidates
