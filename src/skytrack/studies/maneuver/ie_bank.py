@@ -126,6 +126,19 @@ def no_manoeuvre_case(ctx: StudyContext) -> Case:
                          ctx.sensor(SensorSpec()))
 
 
+def cost_windows_of(ctx: StudyContext, windows: list[int], case: Case) -> list[int]:
+    """The bank sizes of the cost part (the sweep and ``reference_window``); ValueError when the
+    no-manoeuvre case is too short for a full bank of the largest."""
+    reference = ctx.params["reference_window"]
+    if int(reference) != reference or reference < 1:
+        raise ValueError(f"--config study.reference_window: must be an integer >= 1, got {reference}")
+    out = sorted(set(windows) | {int(reference)})
+    if case.scans <= FIRST_SCAN + max(out) + 1:
+        raise ValueError(f"--config study.straight_s: {ctx.params['straight_s']} s gives {case.scans} scans, fewer than a full "
+                         f"bank of N_w = {max(out)} needs ({FIRST_SCAN + max(out) + 2})")
+    return out
+
+
 def full_bank_madds(run: FilterRun, window: int) -> tuple[float, float]:
     """Mean and spread (max - min) of the multiply-adds per update over the scans with a full bank."""
     values = run.madds[FIRST_SCAN + window:]
@@ -190,10 +203,7 @@ def _cost(ctx: StudyContext, windows: list[int]) -> dict:
     p, base = ctx.params, ctx.spec(IE)
     case = no_manoeuvre_case(ctx)
     reference = int(p["reference_window"])
-    cost_windows = sorted(set(windows) | {reference})
-    if case.scans <= FIRST_SCAN + max(cost_windows) + 1:
-        raise ValueError(f"--config study.straight_s: {p['straight_s']} s gives {case.scans} scans, fewer than a full bank of "
-                         f"N_w = {max(cost_windows)} needs ({FIRST_SCAN + max(cost_windows) + 2})")
+    cost_windows = cost_windows_of(ctx, windows, case)
     ctx.expect(2 * len(cost_windows) + 1)
     off, on = {}, {}
     for w in cost_windows:
@@ -259,6 +269,7 @@ def _plot(ctx: StudyContext, windows: list[int], table: pd.DataFrame, cost: dict
 
 def run(ctx: StudyContext) -> None:
     windows = _windows(ctx)
+    cost_windows_of(ctx, windows, no_manoeuvre_case(ctx))  # bad configuration fails before the long part
     _, table = _accuracy(ctx, windows)
     _accuracy_claims(ctx, windows, table)
     cost = _cost(ctx, windows)

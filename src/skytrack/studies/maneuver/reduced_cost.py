@@ -288,9 +288,11 @@ def run(ctx: StudyContext) -> None:
             ctx.catalog.setdefault(pcg_label(n, covariance), pcg_spec(n, covariance))
     required = (COUPLED, PER_AXIS, TRANSFORMED, pcg_label(1, "joseph"), *(pcg_label(n, "offline") for n in sweep))
     chosen = ctx.options.filters or default_labels(sweep)
-    labels = list(dict.fromkeys((*required, *chosen)))
+    labels = list(dict.fromkeys((*chosen, *required)))
     specs = [ctx.spec(label) for label in labels]
     base_cases = ctx.cases()
+    for range_km in p["sensor_ranges_km"]:  # bad ranges fail before the long part
+        place_sensor(base_cases[0], float(range_km))
     cost_runs = _cost(ctx, base_cases[0], specs, sweep)
     identity, _ = _degradation(ctx, base_cases, specs, sweep)
     tv10 = tv10_identity()
