@@ -25,6 +25,8 @@ STUDY_MODULES: dict[str, tuple[str, str]] = {
                       "E9 (paper item 6): set-membership filter under bounded and Gaussian noise, containment, violations"),
     "tracker-synthesis": ("skytrack.studies.maneuver.tracker_synthesis",
                           "E10 (P12): range rate per motion state, IMM model set per situation, manoeuvre-library IMM"),
+    "adaptive-qr": ("skytrack.studies.maneuver.adaptive_qr",
+                    "E6 (P10): adaptive Q/R estimation (structured, Sage-Husa, covariance matching) with and without IE"),
     "maneuver-compare": ("skytrack.studies.maneuver.maneuver_compare",
                          "E3 (P5-P7, P11): every filter family on manoeuvring targets: RMS, loss, NEES, detection delay, cost"),
     "multiple-model": ("skytrack.studies.maneuver.multiple_model",
