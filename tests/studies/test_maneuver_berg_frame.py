@@ -138,11 +138,16 @@ def test_same_seed_same_outputs_and_scenario_option(tmp_path):
     assert claims["E5-berg-full-losses"]["measured"]["case"] == "default n=5"
 
 
-def test_check_exit_code(tmp_path):
+def test_check_exit_code_and_gating_on_only(tmp_path):
+    """A failing assert makes --check exit 1; with the config's gating "on" only, the gating-off runs the costs
+    and ratios come from still run."""
     config = tmp_path / "strict.yaml"
-    config.write_text(yaml.safe_dump({"gating": ["off"], "study": {"mac_ratio": 100.0, "tangential_sigmas": [3],
-                                                                   "independent_runs": 1, "extra_scenarios": []}}))
+    config.write_text(yaml.safe_dump({"gating": ["on"], "study": {"mac_ratio": 100.0, "tangential_sigmas": [3],
+                                                                  "independent_runs": 1, "extra_scenarios": []}}))
     result = study("--runs", "2", "--scenario", "vertical", "--config", str(config), "--out", str(tmp_path / "x"), "--check")
     assert result.exit_code == 1 and "E5-mac" in result.output
     _, claims = claims_of(tmp_path / "x")
     assert claims["E5-mac"]["verdict"] is False and claims["E5-tv17-identity"]["verdict"] is True
+    assert claims["E5-mac"]["measured"]["min_ratio"] == pytest.approx(4964 / 769, rel=0.2)
+    summary = pd.read_csv(tmp_path / "x" / SUMMARY_NAME)
+    assert summary["loss_rate_on"].notna().all() and summary["loss_rate_off"].notna().all()

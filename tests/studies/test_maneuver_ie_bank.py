@@ -149,10 +149,13 @@ def test_same_seed_same_outputs_and_check_failure(tmp_path):
     _, claims = claims_of(a)
     assert claims["E4-mac-affine"]["verdict"] is False  # two bank sizes cannot show a line: the assert says so
     strict = tmp_path / "strict.yaml"
-    strict.write_text(yaml.safe_dump({"turn_g": [5], "gating": ["off"],
+    strict.write_text(yaml.safe_dump({"turn_g": [5], "gating": ["on"],
                                       "study": {"windows": [1, 2, 5], "straight_s": 30, "affine_rtol": -1.0}}))
     result = study("--runs", "2", "--config", str(strict), "--out", str(tmp_path / "c"), "--check")
     assert result.exit_code == 1 and "E4-mac-affine" in result.output
+    # gating "on" only in the config: the gating-off runs the detection metrics come from still run
+    _, claims = claims_of(tmp_path / "c")
+    assert set(claims["E4-accuracy"]["measured"]["default n=5"]) == {"1", "2", "5"}
 
 
 @pytest.mark.parametrize("values, message", [

@@ -92,6 +92,11 @@ def study_cases(ctx: StudyContext) -> list[Case]:
     return cases
 
 
+def gating_modes(ctx: StudyContext) -> tuple[str, ...]:
+    """The configured gating modes with ``off`` always included (costs and ratios come from the gating-off runs)."""
+    return tuple(dict.fromkeys(("off", *ctx.gatings)))
+
+
 def whole_case_rms(errors: np.ndarray) -> float:
     """RMS of error vectors ``[K, runs, 3]`` over every run and every scan from the filters' start."""
     return float(np.sqrt(np.mean(np.sum(errors[FIRST_SCAN:] ** 2, axis=-1))))
@@ -280,7 +285,7 @@ def _tangential_investigation(ctx: StudyContext, cases: list[Case]) -> None:
             base_tau = float(spec.options["tangential"][0])
             specs.append(FilterSpec(f"{kind} sigma_t={sigma:g}", spec.kind, ORDER3, {**spec.options, "tangential": (base_tau, sigma)},
                                     description=f"{spec.description}; tangential channel ({base_tau:g} s, {sigma:g} m/s^2)"))
-    summary, runs = ctx.compare([case], specs, keep=True)
+    summary, runs = ctx.compare([case], specs, gatings=gating_modes(ctx), keep=True)
     rows = summary[(summary["basis"] == "all") & (summary["onset"] == 0)].set_index("filter")
     table = {spec.label: {"loss_off": float(rows.loc[spec.label, "loss_rate_off"]),
                           "loss_on": float(rows.loc[spec.label, "loss_rate_on"]),
@@ -344,7 +349,7 @@ def run(ctx: StudyContext) -> None:
     p = ctx.params
     cases = study_cases(ctx)
     labels = list(dict.fromkeys((FULL, FRAME, *(s.label for s in ctx.filters()))))
-    summary, runs = ctx.compare(cases, [ctx.spec(label) for label in labels], keep=True)
+    summary, runs = ctx.compare(cases, [ctx.spec(label) for label in labels], gatings=gating_modes(ctx), keep=True)
     identity = tv17_identity(ctx.spec(FULL), ctx.spec(FRAME), int(p["identity_scans"]))
     worst = max(identity["x_rel_diff"], identity["P_rel_diff"])
     ctx.claim_assert("E5-tv17-identity", "TV17: berg-full = berg-frame after 30 scans of noise-free straight flight",

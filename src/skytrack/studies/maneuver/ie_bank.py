@@ -154,7 +154,9 @@ def _accuracy(ctx: StudyContext, windows: list[int]) -> tuple[list[Case], pd.Dat
     specs = [window_spec(base, w, p["p_fa"], p["bonferroni"]) for w in windows]
     extra = [ctx.spec(label) for label in (ctx.options.filters or ()) if label not in {s.label for s in specs}]
     cases = ctx.cases()
-    summary, runs = ctx.compare(cases, specs + extra, record=True, keep=True)
+    # the detection metrics come from the gating-off runs, which therefore always run
+    gatings = tuple(dict.fromkeys(("off", *ctx.gatings)))
+    summary, runs = ctx.compare(cases, specs + extra, gatings=gatings, record=True, keep=True)
     rows = []
     for case in cases:
         for spec in specs:
