@@ -26,8 +26,9 @@ Claims on the default scenario (all runs, gating off unless stated):
   the first scan at or after it (within the metric window) at which the filter declared a
   manoeuvre -- VD: recorder channel ``switch`` with ``mode = 1``, IE: channel ``detection``; a
   run without one counts as never detected (infinite delay);
-* reports P5 (VD vs IE: mean RMS over the manoeuvre, peak, settling), P6 (VD vs static bank vs
-  IMM), P7 (VD settling vs IMM, scans re-filtered at VD detections), with the sensitivity sweep
+* reports P5 (VD vs IE: mean RMS over the manoeuvre, peak, settling, and ``e_post``, the mean RMS
+  from ``post_delay_s`` = 10 s after the manoeuvre's end to the end of the window), P6 (VD vs
+  static bank vs IMM), P7 (VD settling vs IMM, scans re-filtered at VD detections), with the sensitivity sweep
   sigma_ca in ``sigma_ca_sweep`` (2, 4, 8, 16) for VD and P_fa in ``ie_p_fa_sweep`` (0.01, 0.001)
   for IE (detection delays, false detections before onset, IE re-detections after onset);
   consistency (NEES, containment), loss and cost tables of the n = 5 case; the best filters of
