@@ -181,11 +181,18 @@ def _predict_cv_mode(x0, P0, dt, q, q_z, ndim, x_out, P_out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, Pi, weight, x0, P0, F, Q, FP,
-                    S, e):
+def mix_scratch(M, n):
+    """The scratch arrays of :func:`mix_predict_row`, allocated once per call of a kernel."""
+    return (np.empty((M, M)), np.empty((M, M)), np.empty(n), np.empty((n, n)), np.empty((n, n)), np.empty((n, n)),
+            np.empty((n, n)), np.empty((M, n, n)), np.empty(n))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, scratch):
     """One row of :func:`imm_predict`: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` mixed over ``Pi(dt)``
     and predicted per mode into ``x_out``, ``P_out``, ``c_out`` (one-hot on ``forced_mode`` when
-    it is >= 0); the other arguments are scratch arrays (``S[M, n, n]``, ``e[n]`` among them)."""
+    it is >= 0); ``scratch`` is :func:`mix_scratch`'s."""
+    Pi, weight, x0, P0, F, Q, FP, S, e = scratch
     M, n = x.shape
     ndim = n // 2
     transition_row(dt, sojourn, fixed, Pi)
@@ -266,18 +273,10 @@ def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
     x_out = np.empty_like(x)
     P_out = np.empty_like(P)
     c_out = np.empty_like(mu)
-    Pi = np.empty((M, M))
-    weight = np.empty((M, M))
-    x0 = np.empty(n)
-    P0 = np.empty((n, n))
-    F = np.empty((n, n))
-    Q = np.empty((n, n))
-    FP = np.empty((n, n))
-    S = np.empty((M, n, n))
-    e = np.empty(n)
+    scratch = mix_scratch(M, n)
     for k in range(K):
         mix_predict_row(x[k], P[k], mu[k], dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
-                        x_out[k], P_out[k], c_out[k], Pi, weight, x0, P0, F, Q, FP, S, e)
+                        x_out[k], P_out[k], c_out[k], scratch)
     return x_out, P_out, c_out
 
 

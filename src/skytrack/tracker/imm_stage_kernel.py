@@ -27,13 +27,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.association.grid_kernels import search_grid, spread_classes
 from skytrack.association.kernels import assign_clusters
-from skytrack.filters.imm_kernels import mix_predict_row
+from skytrack.filters.imm_kernels import mix_predict_row, mix_scratch
 from skytrack.models.conversion_kernels import place_2d
 from skytrack.tracker.evidence import LOG_2PI
-from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym
-from skytrack.tracker.stage_kernel import pair_evidence
+from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym, search_candidates, window_plots
+from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -82,18 +81,9 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     ``-(d^2 + ln det + m ln 2 pi) / 2`` the mixture log-likelihood, their measurements, their
     predicted modes ``x``, ``P`` and weights ``c``, and the number of candidates searched."""
     n_tracks = len(tracks)
-    n_plots = len(free)
     M = x_all.shape[1]
     n = 2 * ndim
-    Pi = np.empty((M, M))
-    weight = np.empty((M, M))
-    x0 = np.empty(n)
-    P0 = np.empty((n, n))
-    F = np.empty((n, n))
-    Q = np.empty((n, n))
-    FP = np.empty((n, n))
-    S = np.empty((M, n, n))
-    e = np.empty(n)
+    scratch = mix_scratch(M, n)
     xp = np.empty((M, n))
     Pp = np.empty((M, n, n))
     c = np.empty(M)
@@ -106,7 +96,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     for k in range(n_tracks):
         row = tracks[k]
         mix_predict_row(x_all[row], P_all[row], mu_all[row], t_ref[k] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, xp, Pp, c, Pi, weight, x0, P0, F, Q, FP, S, e)
+                        forced_mode, xp, Pp, c, scratch)
         _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
         speed2 = 0.0
         for a in range(ndim):
@@ -117,19 +107,8 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
             speed2 += v * v
         sigma_t[k] = np.sqrt(max(_max_eig_sym(P_pos, ndim), 0.0))
         margin[k] = np.sqrt(speed2) * margin_s + 1.0
-    plot_pos = np.empty((n_plots, 3))
-    sigma_p = np.empty(n_plots)
-    block = np.empty((ndim, ndim))
-    for j in range(n_plots):
-        col = free[j]
-        for a in range(3):
-            plot_pos[j, a] = plot_pos_all[col, a]
-        for a in range(ndim):
-            for b in range(ndim):
-                block[a, b] = plot_cov_all[col, a, b]
-        sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
-    out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
-                                  ndim)
+    plot_pos, plot_cov = window_plots(free, plot_pos_all, plot_cov_all)
+    out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
     # 2. every candidate at its plot's time: the moment-matched gate and the mixture likelihood
     pair_pos = np.empty((count, 3))
@@ -154,7 +133,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         row = tracks[k]
         col = free[j]
         mix_predict_row(x_all[row], P_all[row], mu_all[row], plot_time_all[col] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, kept_x[m], kept_P[m], kept_c[m], Pi, weight, x0, P0, F, Q, FP, S, e)
+                        forced_mode, kept_x[m], kept_P[m], kept_c[m], scratch)
         xp = kept_x[m]
         Pp = kept_P[m]
         c = kept_c[m]
@@ -339,12 +318,7 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
         tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
-    pick = offered[np.flatnonzero(chosen)]
-    rows = np.empty(len(pick), np.int64)
-    plot_rows = np.empty(len(pick), np.int64)
-    for c in range(len(pick)):
-        rows[c] = tracks[kt[pick[c]]]
-        plot_rows[c] = free[kp[pick[c]]]
+    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
     update_write_imm(rows, plot_rows, position[pick], covariance[pick], pair_x[pick], pair_P[pick], pair_c[pick], x_all,
                      P_all, mu_all, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
                      icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,

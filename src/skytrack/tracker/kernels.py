@@ -89,6 +89,38 @@ def _max_eig_sym(M, dim):
     return best
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def window_plots(free, plot_pos_all, plot_cov_all):
+    """Positions ``[F, 3]`` and covariances ``[F, 3, 3]`` of the window's free plots."""
+    plot_pos = np.empty((len(free), 3))
+    plot_cov = np.empty((len(free), 3, 3))
+    for j in range(len(free)):
+        col = free[j]
+        for a in range(3):
+            plot_pos[j, a] = plot_pos_all[col, a]
+            for b in range(3):
+                plot_cov[j, a, b] = plot_cov_all[col, a, b]
+    return plot_pos, plot_cov
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale):
+    """Candidate (track, plot) pairs: plots within ``scale (s_t + s_p) + margin_t`` of each track's
+    reference position, ``s`` the square root of the largest eigenvalue of the position covariance
+    (:mod:`skytrack.association.grid_kernels`)."""
+    n_plots = len(plot_pos)
+    sigma_p = np.empty(n_plots)
+    block = np.empty((ndim, ndim))
+    for j in range(n_plots):
+        for a in range(ndim):
+            for b in range(ndim):
+                block[a, b] = plot_cov[j, a, b]
+        sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+    out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
+                                  ndim)
+    return out_t, out_p
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time_all,
                   plot_pos_all, plot_cov_all, plot_mode_c_all, plot_range_all, plot_azimuth_all, q,
@@ -147,15 +179,8 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
                 block[a, b] = Pr[2 * a, 2 * b]
         sigma_t[k] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
         margin[k] = np.sqrt(speed2) * margin_s + 1.0
-    sigma_p = np.empty(n_plots)
-    for j in range(n_plots):
-        for a in range(ndim):
-            for b in range(ndim):
-                block[a, b] = plot_cov[j, a, b]
-        sigma_p[j] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
     # 2. candidates: plots within ``scale (s_t + s_p) + margin_t`` of the reference position
-    out_t, out_p, _ = search_grid(ref_pos, sigma_t, margin, plot_pos, sigma_p, spread_classes(sigma_p), search_scale,
-                                  ndim)
+    out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
     # 3.-5. exact gate of every candidate at its plot's time, on the position block of the
     #       prediction only (the update predicts the chosen pairs in full); pairs inside are

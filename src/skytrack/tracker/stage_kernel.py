@@ -37,17 +37,24 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
         tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
+    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
+    update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
+                    psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all,
+                    n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, plot_time, plot_mode_c,
+                    plot_mode3a, plot_mode_s, plot_iff, gain[pick], score, score_max)
+    return rows, plot_rows, candidates
+
+
+@njit(cache=True, nogil=True, inline="always")
+def chosen_rows(offered, chosen, kt, kp, tracks, free):
+    """The pairs the assignment chose (indices into the gated pairs) and their bank and plot rows."""
     pick = offered[np.flatnonzero(chosen)]
     rows = np.empty(len(pick), np.int64)
     plot_rows = np.empty(len(pick), np.int64)
     for c in range(len(pick)):
         rows[c] = tracks[kt[pick[c]]]
         plot_rows[c] = free[kp[pick[c]]]
-    update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
-                    psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all,
-                    n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, plot_time, plot_mode_c,
-                    plot_mode3a, plot_mode_s, plot_iff, gain[pick], score, score_max)
-    return rows, plot_rows, candidates
+    return pick, rows, plot_rows
 
 
 @njit(cache=True, nogil=True)
