@@ -6,18 +6,13 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.filters import alpha_beta_gains as gains
 from skytrack.studies.maneuver import ab_range
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 ALPHAS = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
 RULES = ["benedict-bordner", "kalata"]
 G0 = 9.80665
@@ -25,7 +20,7 @@ RUNS = 50  # the spec's minimum for asserts
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "ab-range", *args])
+    return invoke_study("ab-range", *args)
 
 
 def small_config(tmp_path, name="small.yaml", **study_params):
@@ -39,15 +34,7 @@ def small_config(tmp_path, name="small.yaml", **study_params):
 @pytest.fixture(scope="module")
 def full(tmp_path_factory):
     """Default parameters at the minimum run count of the asserts, with --check."""
-    out = tmp_path_factory.mktemp("ab-range")
-    result = study("--runs", str(RUNS), "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "ab-range", "--runs", str(RUNS), "--check")
 
 
 def test_truth_is_the_exact_piecewise_polynomial():

@@ -6,21 +6,16 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.adaptive_qr import FILTERS, q_equivalent, r_ratio, settle_scans
 from skytrack.studies.maneuver.filters import CATALOG, FilterSetting
 from skytrack.studies.maneuver.measurements import simulate_measurements
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME
 from skytrack.studies.maneuver.runner import RunOptions, run_filter
 from skytrack.studies.maneuver.scenarios import named_cases
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 ASSERTS = {"E6-r-hat-at-onset", "E6-rms-falls-by-onset", "E6-peak-without-ie", "E6-peak-with-ie"}
 REPORTS = {"E6-error-reduction", "E6-q-hat-settling", "E6-sage-husa-divergence", "E6-cost", "E6-structured-loss-in-turn"}
 FILTER_LABELS = {"kf-misspecified", "adaptive", "adaptive-sage-husa", "adaptive-cov-matching", "adaptive-ie", "ie",
@@ -28,20 +23,12 @@ FILTER_LABELS = {"kf-misspecified", "adaptive", "adaptive-sage-husa", "adaptive-
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "adaptive-qr", *args])
+    return invoke_study("adaptive-qr", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("adaptive-qr")
-    result = study("--quick", "--runs", "16", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "adaptive-qr", "--quick", "--runs", "16", "--check")
 
 
 def test_asserts_hold_with_their_numbers(quick):

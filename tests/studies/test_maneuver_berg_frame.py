@@ -6,37 +6,24 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.filters.berg import SPEC_CHANNELS
 from skytrack.studies.maneuver.berg_frame import CHANNELS, STUDY_FILTERS, tv17_identity
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME, TIMING_NAME
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 FILTERS = {"berg-full", "berg-frame", "berg-frame-no-rotation", "berg-frame-no-jerk", "berg-full-no-jerk", "kf-singer"}
 CASES = ["default n=3", "default n=5", "default n=7", "vertical"]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "berg-frame", *args])
+    return invoke_study("berg-frame", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("berg-frame")
-    result = study("--quick", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "berg-frame", "--quick", "--check")
 
 
 def test_channels_are_the_spec_values_passed_explicitly():

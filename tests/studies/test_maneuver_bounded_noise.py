@@ -5,42 +5,29 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
 from scipy.linalg import solve_discrete_are
 from scipy.stats import chi2
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.bounded_noise import position_sizes, reference_specs, set_specs
 from skytrack.studies.maneuver.filters import CATALOG
 from skytrack.studies.maneuver.measurements import simulate_measurements
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME
 from skytrack.studies.maneuver.scenarios import named_cases
 from skytrack.studies.maneuver.trajectory import G0
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 SETS = {f"{label} ({noise})" for label in ("sm-trace", "sm-det", "sm-constant") for noise in "ab"}
 REFS = {f"{label} ({noise})" for label in ("kf-cv", "pseudo-noise") for noise in "ab"}
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "bounded-noise", *args])
+    return invoke_study("bounded-noise", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("bounded-noise")
-    result = study("--quick", "--runs", "12", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "bounded-noise", "--quick", "--runs", "12", "--check")
 
 
 def test_containment_assert_and_reports(quick):

@@ -6,39 +6,26 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.core import linalg
 from skytrack.filters.registry import build_filter
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.polynomial import dwpa
 from skytrack.studies.maneuver.ie_bank import stop_improving
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME, TIMING_NAME
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 QUICK_WINDOWS = [1, 2, 5, 20]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "ie-bank", *args])
+    return invoke_study("ie-bank", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ie-bank")
-    result = study("--quick", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "ie-bank", "--quick", "--check")
 
 
 def ie_madds_per_update(window: int, rows: int = 4, scans: int = 25) -> float:

@@ -5,34 +5,21 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME, TIMING_NAME
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 FILTERS = {"kf-cv", "kf-ca", "kf-singer", "kf-dwpa", "alpha-beta-gamma"}
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "kf-gains", *args])
+    return invoke_study("kf-gains", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("kf-gains")
-    result = study("--quick", "--runs", "100", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "kf-gains", "--quick", "--runs", "100", "--check")
 
 
 def test_claims_and_verdicts(quick):

@@ -6,37 +6,24 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME
 from skytrack.studies.maneuver.reduced_cost import place_sensor, tv10_identity
 from skytrack.studies.maneuver.scenarios import named_cases
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 QUICK_FILTERS = ["kf-singer", "per-axis", "transformed-gain", "pcg-1", "pcg-5", "pcg-offline-1", "pcg-offline-5",
                  "alpha-beta-gamma"]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "reduced-cost", *args])
+    return invoke_study("reduced-cost", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("reduced-cost")
-    result = study("--quick", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "reduced-cost", "--quick", "--check")
 
 
 def test_place_sensor_sets_the_slant_range_along_the_line_of_sight():

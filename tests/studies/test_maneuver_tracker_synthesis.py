@@ -9,12 +9,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
 import skytrack
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.filters import CATALOG, FilterSetting
 from skytrack.studies.maneuver.maneuver_library import (
     LIBRARY_DIR,
@@ -33,28 +30,18 @@ from skytrack.studies.maneuver.runner import RunOptions, run_filter
 from skytrack.studies.maneuver.scenarios import named_cases
 from skytrack.studies.maneuver.tracker_synthesis import case_metrics, run_measured
 from skytrack.studies.maneuver.trajectory import G0
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "tracker-synthesis", *args])
+    return invoke_study("tracker-synthesis", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tracker-synthesis")
-    result = study("--quick", "--runs", "12", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "tracker-synthesis", "--quick", "--runs", "12", "--check")
 
 
 @pytest.fixture(scope="module")
