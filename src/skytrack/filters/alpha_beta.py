@@ -42,7 +42,7 @@ from scipy import linalg as sla
 
 from skytrack.core import linalg
 from skytrack.filters import alpha_beta_gains as gains
-from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.filters.registry import register_filter
 from skytrack.models.motion import MotionModel, block_diag_batch
 
@@ -206,11 +206,7 @@ class AlphaBetaFilter(BatchFilter):
 
     # -------------------------------------------------------------------- innovate
     def innovate(self, state: AlphaBetaState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
-        context = context or {}
-        h, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h, context)
-        m = model.measured(context)
+        H, R, nu, m = measurement_terms(state.x, z, model, context)
         if H.shape[1:] != self._selector.shape or not np.array_equal(H, np.broadcast_to(self._selector, H.shape)):
             raise ValueError("alpha-beta filters take the position of every axis as the measurement "
                              "(H must select the positions; no range rate or partial measurements)")

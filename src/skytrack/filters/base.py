@@ -176,6 +176,20 @@ class UpdateStats:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+def measurement_terms(x: np.ndarray, z: np.ndarray, model, context: dict | None = None):
+    """``(H, R, nu, m)`` of measurements ``z[K, m]`` against states ``x[K, n]`` through ``model``:
+    the Jacobian, the noise, the innovation (formed by the model, which wraps angles and pads
+    absent components) and the components measured per row.  A non-finite innovation is a
+    ValueError, so no filter updates on NaN."""
+    context = context or {}
+    h, H = model.evaluate(x, context)
+    R = model.noise(context)
+    nu = model.residual(np.asarray(z, dtype=float), h, context)
+    if not np.all(np.isfinite(nu)):
+        raise ValueError("non-finite measurement or innovation")
+    return H, R, nu, model.measured(context)
+
+
 # ---------------------------------------------------------------------------- diagnostics
 class Recorder:
     """The one diagnostics channel of filters: ``record(channel, rows, **values)``.

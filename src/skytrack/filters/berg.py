@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.core import linalg
-from skytrack.filters.base import ArrayState, BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import ArrayState, BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.filters.registry import register_filter
 from skytrack.models.discretize import singer_input
 from skytrack.models.motion import MotionModel, SingerAxisModel
@@ -277,13 +277,7 @@ class _BergFilter(BatchFilter):
 
     @staticmethod
     def _measure(state, z, model, context):
-        context = context or {}
-        h, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h, context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
-        return H, R, nu, model.measured(context)
+        return measurement_terms(state.x, z, model, context)
 
 
 @dataclass(eq=False)

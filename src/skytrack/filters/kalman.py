@@ -28,7 +28,7 @@ import numpy as np
 
 from skytrack.core import linalg
 from skytrack.filters import kernels
-from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.models.motion import ConstantVelocityAxis, MotionModel
 
 UPDATE_FORMS = ("joseph", "standard")
@@ -120,13 +120,7 @@ def innovate_gaussian(state: GaussianState, z: np.ndarray, model, context: dict 
                       compiled: bool = True) -> Innovation:
     """Innovation of ``z`` against Gaussian estimates ``state`` through measurement ``model``
     (the Kalman filter's innovate; mixtures and banks use it for their moment-matched estimate)."""
-    context = context or {}
-    h, H = model.evaluate(state.x, context)
-    R = model.noise(context)
-    nu = model.residual(np.asarray(z, dtype=float), h, context)
-    m = model.measured(context)
-    if not np.all(np.isfinite(nu)):
-        raise ValueError("non-finite measurement or innovation")
+    H, R, nu, m = measurement_terms(state.x, z, model, context)
     if compiled:
         S, L, d2, logdet, ok = kernels.innovate_dense(state.P, np.ascontiguousarray(H), R, nu)
         if not ok.all():

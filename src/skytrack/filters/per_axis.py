@@ -38,6 +38,7 @@ from skytrack.filters.base import (
     Capabilities,
     GaussianState,
     Innovation,
+    measurement_terms,
     Recorder,
     UpdateStats,
 )
@@ -220,13 +221,7 @@ class PerAxisKalmanFilter(RecorderSharing, BatchFilter):
     def innovate(self, state, z: np.ndarray, model, context: dict | None = None) -> Innovation:
         if not self.per_axis:
             return self.kalman.innovate(state, z, model, context)
-        context = context or {}
-        h_pred, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h_pred, context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
-        m = model.measured(context)
+        H, R, nu, m = measurement_terms(state.x, z, model, context)
         h = measurement_axes(H, self.transition.ndim, self.transition.order, "per-axis KF")
         r = np.diagonal(R, axis1=-2, axis2=-1).copy()
         Ph, s = scalar_innovation_variances(state.P_axes, h, r)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skytrack.core import linalg
-from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.per_axis import RecorderSharing, axis_transitions, row_scale
 from skytrack.filters.registry import register_filter
@@ -170,14 +170,8 @@ class PiecewiseGainFilter(RecorderSharing, BatchFilter):
             return innovation
         if not getattr(model, "linear", True):
             raise ValueError("piecewise gain (offline covariance): the measurement model must be linear")
-        context = context or {}
-        h, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h, context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
+        H, R, nu, m = measurement_terms(state.x, z, model, context)
         self._check_dimension(H)
-        m = model.measured(context)
         stale = (state.sched_T == NO_SCHEDULE) | (_relative_change(R, state.sched_R) > SCHEDULE_TOLERANCE) \
             | np.any(H != state.sched_H, axis=(1, 2))
         predicted = state

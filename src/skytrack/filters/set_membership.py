@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.core import linalg
-from skytrack.filters.base import ArrayState, BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import ArrayState, BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.filters.registry import register_filter
 from skytrack.models.motion import MotionModel
 
@@ -386,12 +386,8 @@ class SetMembershipFilter(BatchFilter):
         context = context or {}
         if not getattr(model, "linear", True):
             raise ValueError("set-membership: the measurement model must be linear (no range rate)")
-        h, H = model.evaluate(state.x, context)
-        R_b = self.r_bound_scale * model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h, context)
-        m = model.measured(context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
+        H, R, nu, m = measurement_terms(state.x, z, model, context)
+        R_b = self.r_bound_scale * R
         HP = linalg.matmul(H, state.P)
         S0 = linalg.symmetrize(linalg.matmul(HP, np.swapaxes(H, -1, -2)))
         # whitening T with T R_b T^T = I and T S0 T^T = diag(lam)

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.core import linalg
-from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.filters.per_axis import (
     AxisBlockState,
     axis_transitions,
@@ -158,13 +158,7 @@ class TransformedGainFilter(BatchFilter):
         return LosBlockState(x, linalg.sandwich(F, rotated, Q), C)
 
     def innovate(self, state: LosBlockState, z: np.ndarray, model, context: dict | None = None) -> Innovation:
-        context = context or {}
-        h_pred, H = model.evaluate(state.x, context)
-        R = model.noise(context)
-        nu = model.residual(np.asarray(z, dtype=float), h_pred, context)
-        if not np.all(np.isfinite(nu)):
-            raise ValueError("non-finite measurement or innovation")
-        m = model.measured(context)
+        H, R, nu, m = measurement_terms(state.x, z, model, context)
         h = measurement_axes(H, self.transition.ndim, self.transition.order, "transformed gain")
         if np.any(h != h[:, :1]):
             raise ValueError("transformed gain: the measurement must be the same function of every axis")

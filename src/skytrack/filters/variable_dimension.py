@@ -65,7 +65,7 @@ from scipy import stats
 
 from skytrack.core import linalg
 from skytrack.filters.alpha_beta_gains import detector_threshold, detector_window
-from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
+from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
 from skytrack.models.embedding import EmbeddedAxis
 from skytrack.models.motion import AxisModel, MotionModel, _as_steps, block_diag_batch
 from skytrack.models.polynomial import PolynomialAxis
@@ -161,16 +161,11 @@ def check_order3(motion: MotionModel, kind: str) -> int:
 # ---------------------------------------------------------------------------- shared KF steps
 def innovate_linear(state: GaussianState, z: np.ndarray, model, context: dict | None, kind: str) -> Innovation:
     """Innovation of a position-only linear measurement (the measurement model forms ``nu``, H, R)."""
-    context = context or {}
-    h, H = model.evaluate(state.x, context)
-    R = model.noise(context)
-    nu = model.residual(np.asarray(z, dtype=float), h, context)
+    H, R, nu, _ = measurement_terms(state.x, z, model, context)
     ndim = state.x.shape[1] // ORDER
     if H.shape[1] != ndim or not np.array_equal(H, np.broadcast_to(position_selector(ndim), H.shape)):
         raise ValueError(f"{kind}: the measurement must be the {ndim} positions (H selecting them), "
                          f"got H of shape {H.shape[1:]}")
-    if not np.all(np.isfinite(nu)):
-        raise ValueError("non-finite measurement or innovation")
     S = linalg.sandwich(H, state.P, R)
     L = linalg.cholesky(S)
     d2 = linalg.mahalanobis_chol(nu, L)
