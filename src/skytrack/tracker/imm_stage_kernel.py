@@ -31,7 +31,7 @@ from skytrack.association.kernels import assign_clusters
 from skytrack.filters.imm_kernels import mix_predict_row, mix_scratch
 from skytrack.models.conversion_kernels import place_2d
 from skytrack.tracker.evidence import LOG_2PI
-from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym, search_candidates, window_plots
+from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym, search_candidates, window_plots, write_hit
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 
 
@@ -287,20 +287,8 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
                         P_all[k, jm, 2 * a + 1, 2 * b + 1] = (first_cov[a, b] + r2) / (dt * dt)
                         P_all[k, jm, 2 * a, 2 * b + 1] = r2 / dt
                         P_all[k, jm, 2 * a + 1, 2 * b] = pair_cov[pair, b, a] / dt
-        t[k] = plot_time[j]
-        n_updates[k] += 1
-        n_misses[k] = 0
-        score[k] += gain[pair]
-        score_max[k] = max(score_max[k], score[k])
-        z_hint[k] = pair_pos[pair, 2]
-        if np.isfinite(plot_mode_c[j]):
-            alt_m[k] = plot_mode_c[j]
-        if plot_mode3a[j] >= 0:
-            mode3a[k] = plot_mode3a[j]
-        if plot_mode_s[j] >= 0:
-            icao24[k] = plot_mode_s[j]
-        if plot_iff[j] >= 0:
-            iff[k] = plot_iff[j]
+        write_hit(k, j, pair_pos[pair, 2], gain[pair], t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
+                  icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
 
 
 @njit(cache=True, nogil=True)

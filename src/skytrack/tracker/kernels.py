@@ -306,6 +306,27 @@ def _innovation_factor(P_pos, R, ndim, L):
     return True
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def write_hit(k, j, height, gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a, icao24, iff,
+              plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
+    """The bank columns of track ``k`` after a hit by plot ``j`` (:meth:`ScanProcessor._write_updates`):
+    time, counts, score, the plot's height, and the Mode C, Mode 3/A, Mode S and IFF it carries."""
+    t[k] = plot_time[j]
+    n_updates[k] += 1
+    n_misses[k] = 0
+    score[k] += gain
+    score_max[k] = max(score_max[k], score[k])
+    z_hint[k] = height
+    if np.isfinite(plot_mode_c[j]):
+        alt_m[k] = plot_mode_c[j]
+    if plot_mode3a[j] >= 0:
+        mode3a[k] = plot_mode3a[j]
+    if plot_mode_s[j] >= 0:
+        icao24[k] = plot_mode_s[j]
+    if plot_iff[j] >= 0:
+        iff[k] = plot_iff[j]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, manoeuvre, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
@@ -409,17 +430,5 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
             x[k, i] = x_new[i]
             for jj in range(n):
                 P[k, i, jj] = P_new[i, jj]
-        t[k] = plot_time[j]
-        n_updates[k] += 1
-        n_misses[k] = 0
-        score[k] += gain[c]
-        score_max[k] = max(score_max[k], score[k])
-        z_hint[k] = pair_pos[c, 2]
-        if np.isfinite(plot_mode_c[j]):
-            alt_m[k] = plot_mode_c[j]
-        if plot_mode3a[j] >= 0:
-            mode3a[k] = plot_mode3a[j]
-        if plot_mode_s[j] >= 0:
-            icao24[k] = plot_mode_s[j]
-        if plot_iff[j] >= 0:
-            iff[k] = plot_iff[j]
+        write_hit(k, j, pair_pos[c, 2], gain[c], t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
+                  icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
