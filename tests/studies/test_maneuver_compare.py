@@ -6,37 +6,24 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.maneuver_compare import FAMILIES, detection_stats, onset_scan
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME, TIMING_NAME
 from skytrack.studies.maneuver.scenarios import named_cases
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 SWEEP = {"vd", "vd-sigma-ca-2", "vd-sigma-ca-4", "vd-sigma-ca-16", "ie", "ie-p-fa-0.001"}
 CASES = ["default n=3", "default n=5", "default n=7"]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "maneuver-compare", *args])
+    return invoke_study("maneuver-compare", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("maneuver-compare")
-    result = study("--quick", "--runs", "50", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "maneuver-compare", "--quick", "--runs", "50", "--check")
 
 
 def test_asserts_hold_with_their_numbers(quick):

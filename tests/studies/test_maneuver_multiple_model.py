@@ -5,36 +5,23 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import typer
 import yaml
-from typer.testing import CliRunner
 
-from skytrack.cli.study import study_app
 from skytrack.studies.maneuver.multiple_model import DEFAULT_FILTERS, active_state, member_events
 from skytrack.studies.maneuver.outputs import CLAIMS_NAME, FIGURES_NAME, SUMMARY_NAME, TIMESERIES_NAME
+from study_cli import claims_of, invoke_study, study_outputs
 
-app = typer.Typer()
-app.add_typer(study_app, name="study")
-runner = CliRunner()
 CASES = ["default n=3", "default n=5", "default n=7"]
 LITERAL = [f for f in DEFAULT_FILTERS if f.startswith("bank-literal-")]
 
 
 def study(*args):
-    return runner.invoke(app, ["study", "multiple-model", *args])
+    return invoke_study("multiple-model", *args)
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("multiple-model")
-    result = study("--quick", "--runs", "50", "--out", str(out), "--check")
-    assert result.exit_code == 0, result.output
-    return out
-
-
-def claims_of(out):
-    payload = json.loads((out / CLAIMS_NAME).read_text())
-    return payload, {c["id"]: c for c in payload["claims"]}
+    return study_outputs(tmp_path_factory, "multiple-model", "--quick", "--runs", "50", "--check")
 
 
 def test_literal_switch_off_assert(quick):
