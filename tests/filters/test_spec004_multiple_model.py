@@ -392,3 +392,18 @@ def test_compiled_moment_matching_equals_the_numpy_reference():
     assert_rel(fast.x, reference.x, 1e-13)
     assert_rel(fast.P, reference.P, 1e-12)
     np.testing.assert_array_equal(fast.P, np.swapaxes(fast.P, 1, 2))
+
+
+def test_bank_floor_applies_in_both_modes_and_reenabling_needs_one():
+    with pytest.raises(ValueError, match="needs mu_floor > 0"):
+        build_filter("static-bank", singer(3, 10.0, 30.0), switch_off="reenable", mu_floor=0.0)
+    bank = build_filter("static-bank", singer(3, 10.0, 30.0), switch_off="permanent", mu_floor=1e-3)
+    model = ConvertedPositionModel(3, 3)
+    rows = 4
+    state = bank.initiate(np.zeros((rows, 9)), np.tile(np.eye(9) * 100.0, (rows, 1, 1)))
+    rng = np.random.default_rng(2)
+    for _ in range(6):
+        pred = bank.predict(state, np.ones(rows))
+        z = rng.normal(0.0, 5.0, (rows, 3))
+        state, _ = bank.update(pred, z, bank.innovate(pred, z, model, {"R": np.tile(np.eye(3) * 25.0, (rows, 1, 1))}))
+        assert np.all(state.mu[state.active] >= 1e-3 * (1 - 1e-12))

@@ -96,7 +96,7 @@ def test_summary_series_and_figures(quick):
     assert probabilities[0]["title"] == "literal bank, cv-ca-singer" and probabilities[0]["labels"] == ["CV", "CA", "Singer"]
     switching = figures["multiple_model_switching.png"]["axes"]
     assert [ax["title"] for ax in switching] == [f"{c}: {v}" for c in CASES for v in
-                                                 ("bank-literal-cv-ca-singer", "bank-reenable-only", "bank-improved-cv-ca-singer")]
+                                                 ("bank-literal-cv-ca-singer", "bank-floor-only", "bank-improved-cv-ca-singer")]
 
 
 def test_member_events_and_active_state():

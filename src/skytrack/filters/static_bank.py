@@ -11,8 +11,9 @@ every measurement; nothing is mixed between them.  Per row:
 * divergence test per active member once ``W + 5`` scans have been processed:
   ``sum over the last W scans of eps_j > chi2_{n_z W}^-1(1 - P_div)`` switches the member off,
   never the last active one (if every active member fails, the one with the smallest sum stays);
-* ``switch_off="permanent"`` with ``mu_floor=0`` is the literal method; the default
-  (``"reenable"``) floors active probabilities at ``mu_floor`` (renormalised), never switches
+* ``switch_off="permanent"`` with ``mu_floor=0`` is the literal method (a floor may be added);
+  the default (``"reenable"``, which needs ``mu_floor > 0``) floors active probabilities at
+  ``mu_floor`` (renormalised), never switches
   off the most probable member, and, ``cooldown`` scans after a switch-off, re-initialises the
   member from the bank output with ``mu = mu_floor``.  The test's false-alarm rate is
   ``P_div`` per member and scan, so over hundreds of scans the literal rule does switch off a
@@ -134,6 +135,9 @@ class StaticBankFilter(BatchFilter):
             raise ValueError(f"static bank: switch_off must be one of {SWITCH_OFF_MODES}, got {self.switch_off!r}")
         if not 0.0 <= self.mu_floor < 1.0 / count:
             raise ValueError(f"static bank: mu_floor must be in [0, 1/{count}), got {self.mu_floor}")
+        if self.switch_off == "reenable" and self.mu_floor == 0.0:
+            raise ValueError("static bank: switch_off='reenable' needs mu_floor > 0 (a member re-enabled with "
+                             "probability 0 could never regain weight)")
         if not (isinstance(self.cooldown, (int, np.integer)) and self.cooldown >= 1):
             raise ValueError(f"static bank: cooldown must be an integer >= 1, got {self.cooldown}")
         if self.output not in OUTPUTS:
@@ -230,8 +234,9 @@ class StaticBankFilter(BatchFilter):
                 r, j = np.nonzero(due)
                 self.recorder.record("reenable", r, member=j, scan=scans[r])
                 mu /= mu.sum(axis=1, keepdims=True)
-            if self.mu_floor > 0.0:
-                mu = floored(mu, active, self.mu_floor)
+
+        if self.mu_floor > 0.0:  # in either switch-off mode
+            mu = floored(mu, active, self.mu_floor)
         if self.recorder.active:
             self.recorder.record("model_probabilities", np.arange(rows), mu=mu)
         new = self.state_type.assemble(members, mu=mu, active=active, eps_window=eps_window, scans=scans,

@@ -8,10 +8,10 @@ Filters (§3.3 N, O, R16-R18; ``--filters`` replaces them):
   (the §6 default of the bank), ``cv-ca``, ``cv-ct`` and ``full``; W = 5, P_div = 0.001;
 * IMM for the sets ``cv-ca``, ``cv-ct``, ``full`` and ``cv-ca-singer`` (sojourn 20 s in CV, 10 s in
   the other modes);
-* ``bank-reenable-only``: the default set re-enabled without a probability floor (mu_floor = 0), to
-  separate the effect of mu_min from that of re-enabling.  (A floor without re-enabling is not a
-  variant: the bank applies ``mu_floor`` in the re-enabling mode only, so ``switch_off="permanent"``
-  with a floor is the literal bank.)
+* ``bank-floor-only``: the default set with the probability floor mu_min = 1e-3 but never
+  re-enabled, to separate the effect of mu_min from that of re-enabling.  (Re-enabling without a
+  floor is not a variant: a member re-enabled with mu = 0 could never regain weight, so the bank
+  refuses ``switch_off="reenable"`` with ``mu_floor=0``.)
 
 Cases: the default scenario (n = 3, 5, 7) always, then ``extra_scenarios`` (``weave``,
 ``vertical``), or the ``--scenario`` / ``--truth`` cases.  The ``fighter`` scenario (T = 0.1 s, ten
@@ -73,8 +73,8 @@ LITERAL = {"switch_off": "permanent", "mu_floor": 0.0}
 IMPROVED = {"switch_off": "reenable", "mu_floor": 1e-3}
 BANK_OPTIONS = {"window": 5, "p_divergence": 0.001, "cooldown": 20}
 LITERAL_DEFAULT, IMPROVED_DEFAULT = f"bank-literal-{DEFAULT_SET}", f"bank-improved-{DEFAULT_SET}"
-REENABLE_ONLY = "bank-reenable-only"
-VARIANTS = (LITERAL_DEFAULT, REENABLE_ONLY, IMPROVED_DEFAULT)
+FLOOR_ONLY = "bank-floor-only"
+VARIANTS = (LITERAL_DEFAULT, FLOOR_ONLY, IMPROVED_DEFAULT)
 
 
 def _bank(label: str, model_set: str, mode: dict, text: str) -> FilterSpec:
@@ -86,12 +86,12 @@ FILTERS: dict[str, FilterSpec] = {s.label: s for s in (
     *[_bank(f"bank-literal-{name}", name, LITERAL, "literal (permanent switch-off, no floor)") for name in BANK_SETS],
     *[_bank(f"bank-improved-{name}", name, IMPROVED, "improved (re-enable after 20 scans, mu_min = 1e-3)")
       for name in BANK_SETS],
-    _bank(REENABLE_ONLY, DEFAULT_SET, {"switch_off": "reenable", "mu_floor": 0.0}, "re-enable after 20 scans, no floor"),
+    _bank(FLOOR_ONLY, DEFAULT_SET, {"switch_off": "permanent", "mu_floor": 1e-3}, "floor 1e-3, never re-enabled"),
     *[FilterSpec(f"imm-{name}", "imm", ORDER3, options={"model_set": name},
                  description=f"IMM {name} (sojourn CV 20 s, others 10 s)") for name in IMM_SETS if name == DEFAULT_SET],
 )}
 DEFAULT_FILTERS = (*[f"bank-literal-{n}" for n in BANK_SETS], *[f"bank-improved-{n}" for n in BANK_SETS],
-                   REENABLE_ONLY, *[f"imm-{n}" for n in IMM_SETS])
+                   FLOOR_ONLY, *[f"imm-{n}" for n in IMM_SETS])
 PARAMS = {
     "extra_scenarios": list(COMPARE_PARAMS["extra_scenarios"]),
     "switch_window_scans": 10,
@@ -259,9 +259,8 @@ def _reports(ctx, rows, results, cases, labels) -> None:
                      "settling, loss and NEES per filter and case", table, "P11, P12")
     ctx.claim_report("E7-best-set", "the model set with the lowest manoeuvre RMS (IMM, improved bank, literal bank) and the "
                      "best filter by manoeuvre RMS and by the level after the manoeuvres, per case", best, "P12")
-    ctx.claim_report("E7-floor-reenable", f"effect of mu_min and re-enabling on the {DEFAULT_SET} bank: literal, re-enabled "
-                     "without a floor, improved (a member re-enabled with mu = mu_min = 0 keeps mu = 0: the floor is what lets "
-                     "it contribute again)", effect, "P11")
+    ctx.claim_report("E7-floor-reenable", f"effect of mu_min and re-enabling on the {DEFAULT_SET} bank: literal, floor "
+                     "mu_min = 1e-3 without re-enabling, improved (floor and re-enabling)", effect, "P11")
     ctx.claim_report("E7-switching", "switch-offs and re-enables per member: fraction of runs switching it off before onset, "
                      "switch-offs and re-enables per run", switching, "P11")
 
