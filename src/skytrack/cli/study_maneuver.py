@@ -21,6 +21,7 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from skytrack.studies.maneuver.names import STUDY_MODULES
@@ -60,7 +61,8 @@ def _claims_table(claims: list[dict], name: str) -> Table:
         table.add_column(column, overflow="fold")
     for claim in claims:
         verdict = {True: "[green]pass[/green]", False: "[red]FAIL[/red]", None: "–"}[claim["verdict"]]
-        table.add_row(claim["id"], claim["kind"], verdict, _value(claim["measured"])[:400])
+        # measured values are text, not rich markup (lists print as "[...]")
+        table.add_row(escape(claim["id"]), claim["kind"], verdict, escape(_value(claim["measured"])[:400]))
     return table
 
 
