@@ -46,9 +46,10 @@ MOTION_MODELS = ("singer", "cv")
 #: switch to follow turns; Singer's own acceleration state covers them (1 = switch off)
 DEFAULT_MANOEUVRE_SCALE = {"cv": 3000.0, "singer": 1.0}
 #: the tracker's multiple-model filters (imm, static-bank): model set and its options, chosen on
-#: the terminal scenario (seeds 1-3; spec 004's own defaults are for fighter manoeuvres at 1 s
-#: scans).  Civil traffic turns at about 3 deg/s; continuous white-noise acceleration keeps the
-#: modes right for uneven revisit intervals; the noisy CV mode serves the manoeuvre gate.
+#: the terminal scenario (seeds 1-3) and the Paris tuning windows of benchmarks/vs_stonesoup_windows.py
+#: (spec 004's own defaults are for fighter manoeuvres at 1 s scans).  Civil traffic turns at
+#: about 3 deg/s; continuous white-noise acceleration keeps the modes right for uneven revisit
+#: intervals; the noisy CV mode serves the manoeuvre gate.
 TRACKER_MODEL_SET = "cv-ct-noisy"
 TRACKER_MODEL_SET_OPTIONS = {"noise": "continuous", "turn_rate_deg_s": 3.0, "q_cv": 0.2, "q_ct": 1.0,
                              # the noisy CV mode has the psi filter's manoeuvre PSD, 0.5 x 3000 m^2/s^3:
