@@ -31,7 +31,14 @@ from skytrack.association.kernels import assign_clusters
 from skytrack.filters.imm_kernels import mix_predict_row, mix_scratch
 from skytrack.models.conversion_kernels import place_2d
 from skytrack.tracker.evidence import LOG_2PI
-from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym, search_candidates, window_plots, write_hit
+from skytrack.tracker.kernels import (
+    _innovation_factor,
+    _max_eig_sym,
+    joseph_position_update,
+    search_candidates,
+    window_plots,
+    write_hit,
+)
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 
 
@@ -226,46 +233,8 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
             d2_j, logdet_j = _solve_d2(L, pair_pos[pair], mode_pos, m, w)
             log_post[jm] = (np.log(c[jm]) if c[jm] > 0.0 else -np.inf) - 0.5 * (d2_j + logdet_j + m * LOG_2PI)
             best = max(best, log_post[jm])
-            # K = P H^T S^-1 (H selects positions): rows of P's position columns through L L^T
-            for i in range(n):
-                for a in range(m):
-                    acc = Pp[jm, i, 2 * a]
-                    for l in range(a):
-                        acc -= L[a, l] * y[l]
-                    y[a] = acc / L[a, a]
-                for a in range(m - 1, -1, -1):
-                    acc = y[a]
-                    for l in range(a + 1, m):
-                        acc -= L[l, a] * K[i, l]
-                    K[i, a] = acc / L[a, a]
-            for i in range(n):
-                acc = xp[jm, i]
-                for a in range(m):
-                    acc += K[i, a] * (pair_pos[pair, a] - xp[jm, 2 * a])
-                x_all[k, jm, i] = acc
-            for i in range(n):
-                for jj in range(n):
-                    acc = Pp[jm, i, jj]
-                    for a in range(m):
-                        acc -= K[i, a] * Pp[jm, 2 * a, jj]
-                    AP[i, jj] = acc
-            for i in range(n):
-                for a in range(m):
-                    acc = 0.0
-                    for b in range(m):
-                        acc += K[i, b] * pair_cov[pair, b, a]
-                    KR[i, a] = acc - AP[i, 2 * a]
-            for i in range(n):
-                for jj in range(n):
-                    acc = AP[i, jj]
-                    for a in range(m):
-                        acc += KR[i, a] * K[jj, a]
-                    P_all[k, jm, i, jj] = acc
-            for i in range(n):
-                for jj in range(i + 1, n):
-                    mean = 0.5 * (P_all[k, jm, i, jj] + P_all[k, jm, jj, i])
-                    P_all[k, jm, i, jj] = mean
-                    P_all[k, jm, jj, i] = mean
+            joseph_position_update(xp[jm], Pp[jm], pair_pos[pair], pair_cov[pair], L, m, K, y, AP, KR, x_all[k, jm],
+                                   P_all[k, jm])
         total = 0.0
         for jm in range(M):
             total += np.exp(log_post[jm] - best)

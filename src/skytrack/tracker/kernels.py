@@ -307,6 +307,52 @@ def _innovation_factor(P_pos, R, ndim, L):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def joseph_position_update(xp, Pp, z, R, L, m, K, y, AP, KR, x_out, P_out):
+    """Kalman update of a prediction ``xp``, ``Pp`` (layout ``[x, vx, ...]``) by a position
+    measurement ``z`` with noise ``R``, ``L`` the Cholesky factor of ``S = P_pos + R``: gain, state
+    and the Joseph form into ``x_out``, ``P_out`` (symmetrised); ``K``, ``y``, ``AP``, ``KR`` are scratch."""
+    n = len(xp)
+    # K = P H^T S^-1 with H selecting positions: P H^T is the position columns of P
+    for i in range(n):
+        for a in range(m):
+            acc = Pp[i, 2 * a]
+            for l in range(a):
+                acc -= L[a, l] * y[l]
+            y[a] = acc / L[a, a]
+        for a in range(m - 1, -1, -1):
+            acc = y[a]
+            for l in range(a + 1, m):
+                acc -= L[l, a] * K[i, l]
+            K[i, a] = acc / L[a, a]
+    for i in range(n):
+        acc = xp[i]
+        for a in range(m):
+            acc += K[i, a] * (z[a] - xp[2 * a])
+        x_out[i] = acc
+    # Joseph form with A = I - K H and H selecting positions, without the products by 0 and 1:
+    # A P = P - K (H P);  A P A^T + K R K^T = A P + sum_a (K R - A P H^T)[:, a] K[:, a]^T
+    for i in range(n):
+        for jj in range(n):
+            acc = Pp[i, jj]
+            for a in range(m):
+                acc -= K[i, a] * Pp[2 * a, jj]
+            AP[i, jj] = acc
+    for i in range(n):
+        for a in range(m):
+            acc = 0.0
+            for b in range(m):
+                acc += K[i, b] * R[b, a]
+            KR[i, a] = acc - AP[i, 2 * a]
+    for i in range(n):
+        for jj in range(n):
+            acc = AP[i, jj]
+            for a in range(m):
+                acc += KR[i, a] * K[jj, a]
+            P_out[i, jj] = acc
+    _symmetrise(P_out, n)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def write_hit(k, j, height, gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a, icao24, iff,
               plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
     """The bank columns of track ``k`` after a hit by plot ``j`` (:meth:`ScanProcessor._write_updates`):
@@ -362,44 +408,7 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
             for b in range(m):
                 P_pos[a, b] = Pp[2 * a, 2 * b]
         _innovation_factor(P_pos, pair_cov[c], m, L)  # positive definite: the gate factored it
-        # K = P H^T S^-1 with H selecting positions: P H^T is the position columns of P
-        for i in range(n):
-            for a in range(m):
-                acc = Pp[i, 2 * a]
-                for l in range(a):
-                    acc -= L[a, l] * y[l]
-                y[a] = acc / L[a, a]
-            for a in range(m - 1, -1, -1):
-                acc = y[a]
-                for l in range(a + 1, m):
-                    acc -= L[l, a] * K[i, l]
-                K[i, a] = acc / L[a, a]
-        for i in range(n):
-            acc = xp[i]
-            for a in range(m):
-                acc += K[i, a] * (pair_pos[c, a] - xp[2 * a])
-            x_new[i] = acc
-        # Joseph form with A = I - K H and H selecting positions, without the products by 0 and 1:
-        # A P = P - K (H P);  A P A^T + K R K^T = A P + sum_a (K R - A P H^T)[:, a] K[:, a]^T
-        for i in range(n):
-            for jj in range(n):
-                acc = Pp[i, jj]
-                for a in range(m):
-                    acc -= K[i, a] * Pp[2 * a, jj]
-                AP[i, jj] = acc
-        for i in range(n):
-            for a in range(m):
-                acc = 0.0
-                for b in range(m):
-                    acc += K[i, b] * pair_cov[c, b, a]
-                KR[i, a] = acc - AP[i, 2 * a]
-        for i in range(n):
-            for jj in range(n):
-                acc = AP[i, jj]
-                for a in range(m):
-                    acc += KR[i, a] * K[jj, a]
-                P_new[i, jj] = acc
-        _symmetrise(P_new, n)
+        joseph_position_update(xp, Pp, pair_pos[c], pair_cov[c], L, m, K, y, AP, KR, x_new, P_new)
         if psi_enabled:
             nis = d2[c] / m
             if manoeuvre:
