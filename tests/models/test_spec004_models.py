@@ -35,10 +35,10 @@ from skytrack.models.turn import SMALL_TURN, CoordinatedTurn, coordinated_turn, 
 STEPS = np.array([1e-4, 0.05, 0.37, 1.0, 4.0, 12.5, 60.0])
 
 
-def assert_rel(actual, expected, rel, floor=0.0):
-    """Elementwise |a - e| <= rel * |e| + floor."""
+def close(actual, expected, rel, floor=0.0) -> bool:
+    """Elementwise |a - e| <= rel * |e| + floor (same shapes)."""
     actual, expected = np.asarray(actual, float), np.asarray(expected, float)
-    assert np.all(np.abs(actual - expected) <= rel * np.abs(expected) + floor), (actual, expected)
+    return actual.shape == expected.shape and bool(np.all(np.abs(actual - expected) <= rel * np.abs(expected) + floor))
 
 
 def assert_printed(actual, printed: list[str]):
@@ -81,17 +81,17 @@ def test_tv12_singer_van_loan_matches_spec_quadrature_and_spec000_model():
     expected_Q = np.array(TV12_SINGER_Q, dtype=float)
     assert_printed(F, sum(TV12_SINGER_F, []))
     assert_printed(Q, sum(TV12_SINGER_Q, []))
-    assert_rel(Q, expected_Q, 1e-12)
-    assert_rel(F, expected_F, 1e-12)
+    assert close(Q, expected_Q, 1e-12)
+    assert close(F, expected_F, 1e-12)
 
     integrand = lambda s: expm(A * s) @ L @ L.T @ expm(A.T * s) * qc  # noqa: E731
     Q_quad, _ = quad_vec(integrand, 0.0, 1.0, epsrel=1e-14, epsabs=0.0)
-    assert_rel(Q, Q_quad, 1e-12)
+    assert close(Q, Q_quad, 1e-12)
 
     model = SingerAxisModel(20.0, 30.0, "exact")
-    assert_rel(model.F(1.0), F, 1e-12, floor=1e-15)
-    assert_rel(model.Q(1.0), Q, 1e-12)
-    assert_rel(singer_closed_form_q(20.0, 30.0, 1.0), Q, 1e-8)
+    assert close(model.F(1.0), F, 1e-12, floor=1e-15)
+    assert close(model.Q(1.0), Q, 1e-12)
+    assert close(singer_closed_form_q(20.0, 30.0, 1.0), Q, 1e-8)
 
 
 @pytest.mark.parametrize("tau, T, diagonal", [
@@ -102,8 +102,8 @@ def test_tv12_singer_q_diagonal(tau, T, diagonal):
     """TV12 Singer Q diagonals (sigma_m = 30) by Van Loan and by spec 000's model, rel 1e-9."""
     expected = np.array([float(v) for v in diagonal])
     _, Q = van_loan(*singer_generator(tau, 30.0), T)
-    assert_rel(np.diag(Q), expected, 1e-9)
-    assert_rel(np.diag(SingerAxisModel(tau, 30.0).Q(T)), expected, 1e-9)
+    assert close(np.diag(Q), expected, 1e-9)
+    assert close(np.diag(SingerAxisModel(tau, 30.0).Q(T)), expected, 1e-9)
 
 
 @pytest.mark.parametrize("tau, T, printed", [
@@ -116,12 +116,12 @@ def test_tv12_singer_input_response(tau, T, printed):
     A, _, _ = singer_generator(tau, 1.0)
     F, B_expm = input_response(A, np.array([0.0, 0.0, 1.0]), T)
     B = singer_input(tau, T)
-    assert_rel(B, B_expm, 1e-9)
+    assert close(B, B_expm, 1e-9)
     assert_printed(B, printed)
     np.testing.assert_allclose(F, SingerAxisModel(tau, 1.0).F(T), rtol=1e-12, atol=1e-15)
     k, E1 = 1 / tau, math.exp(-T / tau)
     literal = [T**2 / (2 * k) - T / k**2 + (1 - E1) / k**3, T / k - (1 - E1) / k**2, (1 - E1) / k]
-    assert_rel(literal, B_expm, 1e-8)
+    assert close(literal, B_expm, 1e-8)
 
 
 def test_singer_input_series_and_closed_form_meet_and_batch():
@@ -133,8 +133,8 @@ def test_singer_input_series_and_closed_form_meet_and_batch():
     B = singer_input(tau, steps)
     assert B.shape == (len(steps), 3)
     _, B_expm = input_response(A, np.array([0.0, 0.0, 1.0]), steps)
-    assert_rel(B, B_expm, 1e-12)
-    assert_rel(B[0], [1e-18 / 6, 1e-12 / 2, 1e-6], 1e-6)
+    assert close(B, B_expm, 1e-12)
+    assert close(B[0], [1e-18 / 6, 1e-12 / 2, 1e-6], 1e-6)
 
 
 # ---------------------------------------------------------------------------- Van Loan generic
@@ -164,8 +164,8 @@ def test_tv12_polynomial_continuous_equals_van_loan(m):
     A, L = polynomial_generator(m)
     axis = PolynomialAxis(m, "continuous", 2.5)
     F_vl, Q_vl = van_loan(A, L, 2.5, 0.7)
-    assert_rel(axis.Q(0.7), Q_vl, 1e-12)
-    assert_rel(axis.F(0.7), F_vl, 1e-12, floor=1e-300)
+    assert close(axis.Q(0.7), Q_vl, 1e-12)
+    assert close(axis.F(0.7), F_vl, 1e-12, floor=1e-300)
     # over a range of steps: expm (scaling and squaring) is accurate only relative to |Q| (~2e-12 at T = 60)
     F_vl, Q_vl = van_loan(A, L, 2.5, STEPS)
     for Fk, Qk, F_ref, Q_ref in zip(axis.F_batch(STEPS), axis.Q_batch(STEPS), F_vl, Q_vl):
@@ -254,10 +254,10 @@ def test_coordinated_turn_small_angle_series_is_continuous():
     below, above = (SMALL_TURN * (1 - 1e-9)) / T, (SMALL_TURN * (1 + 1e-9)) / T
     lo = np.array(turn_coefficients(below, T), dtype=float)
     hi = np.array(turn_coefficients(above, T), dtype=float)
-    assert_rel(lo, hi, 1e-8)  # the coefficients themselves move by the 2e-9 relative change of omega
+    assert close(lo, hi, 1e-8)  # the coefficients themselves move by the 2e-9 relative change of omega
     # the series side against the trigonometric values at that omega ((1-c) as 2 sin^2, no cancellation)
     w = below
-    assert_rel(lo[:2], [math.sin(w * T) / w, 2 * math.sin(w * T / 2) ** 2 / w], 1e-12)
+    assert close(lo[:2], [math.sin(w * T) / w, 2 * math.sin(w * T / 2) ** 2 / w], 1e-12)
     ct0 = CoordinatedTurn(0.0, 1.5, ndim=3)
     np.testing.assert_array_equal(ct0.F_batch(STEPS), dwna(3, 1.5).F_batch(STEPS))
     np.testing.assert_allclose(ct0.Q_batch(STEPS), dwna(3, 1.5).Q_batch(STEPS), rtol=1e-15)
