@@ -47,7 +47,6 @@ class ManoeuvreSwitchFilter(BatchFilter):
     kind = "kalman-psi"
     capabilities = Capabilities()
     state_type = ManoeuvreState
-    supports_manoeuvre_gate = True
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.scale) and self.scale >= 1.0):
@@ -64,6 +63,11 @@ class ManoeuvreSwitchFilter(BatchFilter):
     @property
     def transition(self):
         return self.kalman.transition
+
+    @property
+    def supports_manoeuvre_gate(self) -> bool:
+        """A tracker may re-gate quiet tracks with psi forced on; with ``scale = 1`` that changes nothing."""
+        return self.scale != 1.0
 
     def in_manoeuvre(self, state: ManoeuvreState) -> np.ndarray:
         """Rows with psi = 1 (they need no manoeuvre gate)."""

@@ -128,8 +128,7 @@ class ScanProcessor(CompiledStages):
             else build_assigner(assoc.assigner)
         self.llr_cost = assoc.scorer == "llr"
         self.scoring = TrackScoring(config.score, sensors.sensors, schedule.period, dim, config.lifecycle.delete_misses)
-        # psi filters with scale 1 never manoeuvre; IMMs have no scale
-        self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False) and getattr(filter, "scale", None) != 1.0
+        self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False)
         geometry = config.geometry
         self.measurements = [
             ConvertedPositionModel(dim, order, s.sigma_range_rate_mps
