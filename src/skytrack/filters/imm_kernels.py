@@ -6,11 +6,12 @@ with continuous white-noise acceleration.  Each mode is described by four number
 (:func:`mode_table`): ``omega`` (rad/s; 0 is CV), the horizontal PSD ``q``, the vertical PSD
 ``q_z`` and a kind code, so one compiled loop runs every mode of every row:
 
-* :func:`mode_transition` — ``F(dt)`` and ``Q(|dt|)``: CV ``[[1, dt], [0, 1]]`` and
-  ``q [[T^3/3, T^2/2], [T^2/2, T]]`` per axis; CT(omega) the turn of
-  :mod:`skytrack.models.turn` (exact continuous-noise Q, series below ``|wT| < 0.1``) and CV on
-  z.  A negative ``dt`` gives ``F(-|dt|)``, the inverse of ``F(|dt|)`` for both kinds (the
-  reference :class:`~skytrack.filters.kalman.KalmanFilter` takes the pseudo-inverse, equal to it).
+* the per-mode prediction ``F x0``, ``F P0 F^T + Q(|dt|)`` on the transition's block structure:
+  CV ``[[1, dt], [0, 1]]`` with ``q [[T^3/3, T^2/2], [T^2/2, T]]`` per axis
+  (:func:`_predict_cv_mode`); CT(omega) the turn of :mod:`skytrack.models.turn` (exact
+  continuous-noise Q, series below ``|wT| < 0.1``) and CV on z (:func:`_predict_ct_mode`).  A
+  negative ``dt`` gives ``F(-|dt|)``, the inverse of ``F(|dt|)`` for both kinds (the reference
+  :class:`~skytrack.filters.kalman.KalmanFilter` takes the pseudo-inverse, equal to it).
 * :func:`imm_predict` — mixing with ``Pi(dt)`` (sojourn times or a fixed matrix, as
   :mod:`skytrack.filters.imm`) then ``x' = F x0``, ``P' = F P0 F^T + Q`` per mode, and the
   predicted probabilities ``c``; a row with ``force`` takes ``c`` one-hot on the manoeuvre mode.
@@ -66,68 +67,83 @@ def _mode_row(model):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def mode_transition(mode, dt, ndim, F, Q):
-    """``F(dt)`` and ``Q(|dt|)`` of one mode (a row of :func:`mode_table`) into ``F``, ``Q`` (n x n)."""
-    n = 2 * ndim
-    step = abs(dt)
-    for i in range(n):
-        for j in range(n):
-            F[i, j] = 0.0
-            Q[i, j] = 0.0
-    q = mode[2]
-    q_z = mode[3]
-    for a in range(ndim):
-        i = 2 * a
-        F[i, i] = 1.0
-        F[i + 1, i + 1] = 1.0
-        F[i, i + 1] = dt
-        qa = q_z if a == 2 else q
-        Q[i, i] = qa * step * step * step / 3.0
-        Q[i, i + 1] = qa * step * step / 2.0
-        Q[i + 1, i] = qa * step * step / 2.0
-        Q[i + 1, i + 1] = qa * step
-    if mode[0] != KIND_CT:
-        return
-    w = mode[1]
-    wt = w * dt
+def turn_coefficients(omega, dt):
+    """``(sin(wT)/w, (1 - cos wT)/w, cos wT, sin wT)`` of the CT transition (series below ``|wT| < SMALL_TURN``)."""
+    wt = omega * dt
     if abs(wt) < SMALL_TURN:
         s_over = dt
-        one_minus_c_over = w * dt * dt / 2.0
+        one_minus_c_over = omega * dt * dt / 2.0
     else:
-        s_over = math.sin(wt) / w
-        one_minus_c_over = 2.0 * math.sin(0.5 * wt) ** 2 / w
-    c = math.cos(wt)
-    s = math.sin(wt)
-    F[0, 1] = s_over
-    F[0, 3] = -one_minus_c_over
-    F[1, 1] = c
-    F[1, 3] = -s
-    F[2, 1] = one_minus_c_over
-    F[2, 3] = s_over
-    F[3, 1] = s
-    F[3, 3] = c
-    wt = w * step
+        s_over = math.sin(wt) / omega
+        one_minus_c_over = 2.0 * math.sin(0.5 * wt) ** 2 / omega
+    return s_over, one_minus_c_over, math.cos(wt), math.sin(wt)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def turn_noise_terms(omega, step):
+    """``a = (wT - sin wT)/w^3`` and ``b = (1 - cos wT)/w^2`` of CT's continuous-noise Q over ``step``
+    (their series below ``|wT| < SMALL_TURN_Q``): ``Q_xx = Q_yy = 2 q a``, ``Q_x,vx = Q_y,vy = q b``,
+    ``Q_x,vy = -Q_vx,y = q w a`` (:mod:`skytrack.models.turn`)."""
+    wt = omega * step
     x2 = wt * wt
     if abs(wt) < SMALL_TURN_Q:
         a_ = step**3 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 / 362880)))
         b_ = step * step * (1 / 2 - x2 * (1 / 24 - x2 * (1 / 720 - x2 / 40320)))
     else:
-        a_ = (wt - math.sin(wt)) / w**3
-        b_ = 2.0 * math.sin(0.5 * wt) ** 2 / (w * w)
-    Q[0, 0] = 2.0 * q * a_
-    Q[2, 2] = 2.0 * q * a_
-    Q[0, 1] = q * b_
-    Q[1, 0] = q * b_
-    Q[2, 3] = q * b_
-    Q[3, 2] = q * b_
-    Q[0, 3] = q * w * a_
-    Q[3, 0] = q * w * a_
-    Q[1, 2] = -q * w * a_
-    Q[2, 1] = -q * w * a_
-    Q[0, 2] = 0.0
-    Q[2, 0] = 0.0
-    Q[1, 3] = 0.0
-    Q[3, 1] = 0.0
+        a_ = (wt - math.sin(wt)) / omega**3
+        b_ = 2.0 * math.sin(0.5 * wt) ** 2 / (omega * omega)
+    return a_, b_
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _turn_apply(v, out, s_over, omc_over, c, s, dt, ndim):
+    """``out = F v`` for the CT transition (horizontal turn, CV on z): 13 products, no zeros visited."""
+    out[0] = v[0] + s_over * v[1] - omc_over * v[3]
+    out[1] = c * v[1] - s * v[3]
+    out[2] = omc_over * v[1] + v[2] + s_over * v[3]
+    out[3] = s * v[1] + c * v[3]
+    if ndim == 3:
+        out[4] = v[4] + dt * v[5]
+        out[5] = v[5]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _predict_ct_mode(x0, P0, dt, omega, q, q_z, ndim, x_out, P_out, G, column, result):
+    """``F x0``, ``F P0 F^T + Q`` of a CT(omega) mode with the transition's block structure
+    (``G = P0 F^T`` row by row, then ``F G`` column by column; ``G``, ``column``, ``result`` scratch)."""
+    n = 2 * ndim
+    s_over, omc_over, c, s = turn_coefficients(omega, dt)
+    _turn_apply(x0, x_out, s_over, omc_over, c, s, dt, ndim)
+    for b in range(n):
+        _turn_apply(P0[b], G[b], s_over, omc_over, c, s, dt, ndim)
+    for a in range(n):
+        for l in range(n):
+            column[l] = G[l, a]
+        _turn_apply(column, result, s_over, omc_over, c, s, dt, ndim)
+        for b in range(a, n):
+            P_out[b, a] = result[b]
+    for a in range(n):
+        for b in range(a + 1, n):
+            P_out[a, b] = P_out[b, a]
+    step = abs(dt)
+    a_, b_ = turn_noise_terms(omega, step)
+    P_out[0, 0] += 2.0 * q * a_
+    P_out[2, 2] += 2.0 * q * a_
+    P_out[1, 1] += q * step
+    P_out[3, 3] += q * step
+    P_out[0, 1] += q * b_
+    P_out[1, 0] += q * b_
+    P_out[2, 3] += q * b_
+    P_out[3, 2] += q * b_
+    P_out[0, 3] += q * omega * a_
+    P_out[3, 0] += q * omega * a_
+    P_out[1, 2] -= q * omega * a_
+    P_out[2, 1] -= q * omega * a_
+    if ndim == 3:
+        P_out[4, 4] += q_z * step * step * step / 3.0
+        P_out[4, 5] += q_z * step * step / 2.0
+        P_out[5, 4] += q_z * step * step / 2.0
+        P_out[5, 5] += q_z * step
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -183,8 +199,8 @@ def _predict_cv_mode(x0, P0, dt, q, q_z, ndim, x_out, P_out):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def mix_scratch(M, n):
     """The scratch arrays of :func:`mix_predict_row`, allocated once per call of a kernel."""
-    return (np.empty((M, M)), np.empty((M, M)), np.empty(n), np.empty((n, n)), np.empty((n, n)), np.empty((n, n)),
-            np.empty((n, n)), np.empty((M, n, n)), np.empty(n))
+    return (np.empty((M, M)), np.empty((M, M)), np.empty(n), np.empty((n, n)), np.empty((n, n)), np.empty(n),
+            np.empty(n), np.empty((M, n, n)), np.empty(n))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -192,7 +208,7 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
     """One row of :func:`imm_predict`: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` mixed over ``Pi(dt)``
     and predicted per mode into ``x_out``, ``P_out``, ``c_out`` (one-hot on ``forced_mode`` when
     it is >= 0); ``scratch`` is :func:`mix_scratch`'s."""
-    Pi, weight, x0, P0, F, Q, FP, S, e = scratch
+    Pi, weight, x0, P0, G, column, result, S, e = scratch
     M, n = x.shape
     ndim = n // 2
     transition_row(dt, sojourn, fixed, Pi)
@@ -214,7 +230,7 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
     for i in range(M):
         for a in range(n):
             d = x[i, a] - x[0, a]
-            for b in range(n):
+            for b in range(a, n):
                 S[i, a, b] = P[i, a, b] + d * (x[i, b] - x[0, b])
     for j in range(M):
         for a in range(n):
@@ -233,32 +249,8 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
         if modes[j, 0] == KIND_CV:
             _predict_cv_mode(x0, P0, dt, modes[j, 2], modes[j, 3], ndim, x_out[j], P_out[j])
             continue
-        mode_transition(modes[j], dt, ndim, F, Q)
-        # F of CT is sparse (at most 4 non-zeros per row): its zeros are skipped
-        for a in range(n):
-            acc = 0.0
-            for b in range(n):
-                if F[a, b] != 0.0:
-                    acc += F[a, b] * x0[b]
-            x_out[j, a] = acc
-        for a in range(n):
-            for b in range(n):
-                acc = 0.0
-                for l in range(n):
-                    if F[a, l] != 0.0:
-                        acc += F[a, l] * P0[l, b]
-                FP[a, b] = acc
-        for a in range(n):
-            for b in range(a, n):
-                acc = Q[a, b]
-                for l in range(n):
-                    if F[b, l] != 0.0:
-                        acc += FP[a, l] * F[b, l]
-                P_out[j, a, b] = acc
-        for a in range(n):
-            for b in range(a + 1, n):
-                # the upper triangle computed, as FP F^T is symmetric up to rounding
-                P_out[j, b, a] = P_out[j, a, b]
+        _predict_ct_mode(x0, P0, dt, modes[j, 1], modes[j, 2], modes[j, 3], ndim, x_out[j], P_out[j], G, column,
+                         result)
     if forced_mode >= 0:
         for j in range(M):
             c_out[j] = 1.0 if j == forced_mode else 0.0
