@@ -14,7 +14,8 @@ with continuous white-noise acceleration.  Each mode is described by four number
   :class:`~skytrack.filters.kalman.KalmanFilter` takes the pseudo-inverse, equal to it).
 * :func:`imm_predict` — mixing with ``Pi(dt)`` (sojourn times or a fixed matrix, as
   :mod:`skytrack.filters.imm`) then ``x' = F x0``, ``P' = F P0 F^T + Q`` per mode, and the
-  predicted probabilities ``c``; a row with ``force`` takes ``c`` one-hot on the manoeuvre mode.
+  predicted probabilities ``c``; a row with ``force`` takes ``c`` one-hot on the manoeuvre mode;
+* :func:`imm_predict_matched` — the same, moment-matched, for the rows of an output instant.
 
 They are tested equal to the numpy reference (``IMMFilter(..., compiled=False)``) by the
 conformance suite and ``tests/filters/test_spec004_multiple_model.py``.
@@ -293,3 +294,35 @@ def moment_match_rows(x, P, mu):
                 P_out[k, a, b] = acc
                 P_out[k, b, a] = acc
     return x_out, P_out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def imm_predict_matched(x, P, mu, rows, dt, modes, sojourn, fixed):
+    """Rows ``rows`` of ``x[N, M, n]``, ``P[N, M, n, n]``, ``mu[N, M]`` mixed and predicted by
+    ``dt[K]`` (:func:`imm_predict`), then moment-matched (:func:`moment_match_rows`): returns the
+    Gaussian ``x[K, n]``, ``P[K, n, n]`` and the predicted probabilities ``c[K, M]``, without the
+    per-mode arrays (an output instant's or a snapshot's picture)."""
+    _, M, n = x.shape
+    K = len(rows)
+    x_out = np.empty((K, n))
+    P_out = np.empty((K, n, n))
+    c_out = np.empty((K, M))
+    xp = np.empty((M, n))
+    Pp = np.empty((M, n, n))
+    scratch = mix_scratch(M, n)
+    for r in range(K):
+        k = rows[r]
+        mix_predict_row(x[k], P[k], mu[k], dt[r], modes, sojourn, fixed, -1, xp, Pp, c_out[r], scratch)
+        for a in range(n):
+            acc = 0.0
+            for j in range(M):
+                acc += c_out[r, j] * xp[j, a]
+            x_out[r, a] = acc
+        for a in range(n):
+            for b in range(a, n):
+                acc = 0.0
+                for j in range(M):
+                    acc += c_out[r, j] * (Pp[j, a, b] + (xp[j, a] - x_out[r, a]) * (xp[j, b] - x_out[r, b]))
+                P_out[r, a, b] = acc
+                P_out[r, b, a] = acc
+    return x_out, P_out, c_out

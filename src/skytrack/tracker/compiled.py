@@ -5,9 +5,15 @@ switch) on a constant-velocity model with the same noise on every axis, the ``d2
 the ``gnn`` assigner, for a ground radar without range rate.  A rotating radar's window is then
 expectations (:func:`~skytrack.tracker.window_kernels.expect_rotating`), every association stage
 (:func:`~skytrack.tracker.stage_kernel.stages_cv`) and the end of the window
-(:func:`~skytrack.tracker.window_kernels.initiate_manage_cv`): three compiled calls.  Other
-sensors use one compiled call per stage (:meth:`CompiledStages._associate_fused`).  The composed
-parts in :mod:`skytrack.tracker.scan` are the reference; tests hold the two equal.
+(:func:`~skytrack.tracker.window_kernels.initiate_manage`): three compiled calls.  Other
+sensors use one compiled call per stage (:meth:`CompiledStages._associate_fused`).
+
+An IMM of continuous-noise CV/CT modes (:func:`fused_imm`) has one compiled call per stage
+(:func:`~skytrack.tracker.imm_stage_kernel.stage_imm`) and, for a rotating radar, the same
+compiled expectations and end of window: the window kernels take every bank in mixture form
+(:meth:`CompiledStages._mixture_arrays`; a Gaussian bank is one mode of probability 1).
+
+The composed parts in :mod:`skytrack.tracker.scan` are the reference; tests hold the two equal.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import numpy as np
 
 from skytrack.association.gnn import MAX_DENSE_CLUSTER
 from skytrack.core.plots import PlotBatch
-from skytrack.filters.base import GaussianState
+from skytrack.filters.base import GaussianState, MixtureState
 from skytrack.filters.imm import IMMFilter, SojournTransition
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.maneuver import ManoeuvreState
@@ -27,7 +33,7 @@ from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.imm_stage_kernel import stage_imm
 from skytrack.tracker.stage_kernel import stage_cv, stages_cv
-from skytrack.tracker.window_kernels import expect_rotating, initiate_manage_cv, record_and_manage
+from skytrack.tracker.window_kernels import expect_rotating, initiate_manage, record_and_manage
 
 class CompiledStages:
     """Compiled counterparts of :class:`~skytrack.tracker.scan.ScanProcessor`'s steps."""
@@ -126,9 +132,10 @@ class CompiledStages:
         bank = self.bank
         sensor = self.sensors.sensors[s]
         schedule = self.schedule
-        storage = bank.storage
         columns = bank.column_storage
-        return expect_rotating(storage.x, columns["t"], columns["z_hint"], columns["alt_m"], len(bank), self.dim,
+        # a mixture's position is its moment-matched mean (ScanProcessor._positions_at)
+        x = bank.storage.x if isinstance(bank.storage, GaussianState) else bank.estimate().x
+        return expect_rotating(x, columns["t"], columns["z_hint"], columns["alt_m"], len(bank), self.dim,
                                self.order, 0.5 * (w_start + w_end), w_start, w_end, float(schedule.phase[s]),
                                float(schedule.period[s]), self._rotation[s], self._origin[s],
                                float(sensor.max_range_m or 0.0), float(sensor.alt_m or 0.0), self._cover_xy,
@@ -143,11 +150,12 @@ class CompiledStages:
         storage, columns = bank.storage, bank.column_storage
         with_psi = isinstance(storage, ManoeuvreState)
         cfg = self.config.lifecycle
-        size, misses, confirmed, hopeless, lost = initiate_manage_cv(
+        x, P, mu, mu0 = self._mixture_arrays()
+        size, misses, confirmed, hopeless, lost = initiate_manage(
             len(bank), new, plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.mode3a,
             plots.mode_s, plots.iff, self.next_track_id, self.config.initiation.sigma_v, self.dim, with_psi, hit,
             expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
-            storage.x, storage.P, storage.psi if with_psi else self._no_psi,
+            x, P, mu, mu0, storage.psi if with_psi else self._no_psi,
             storage.nis_avg if with_psi else np.zeros(1), storage.n_updates if with_psi else np.zeros(1, np.int64),
             columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
@@ -164,14 +172,26 @@ class CompiledStages:
         self.stats["tentative_dropped"] += hopeless
         self.stats["tracks_deleted"] += lost
 
+    def _mixture_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The bank's storage in the window kernels' mixture form: ``x[N, M, n]``, ``P[N, M, n, n]``,
+        ``mu[N, M]`` and the initial probabilities; a Gaussian bank is one mode of probability 1
+        (views of its arrays: the kernels write through them)."""
+        storage = self.bank.storage
+        if isinstance(storage, MixtureState):
+            return storage.x, storage.P, storage.mu, np.asarray(self.filter.initial_probabilities, dtype=float)
+        count, n = storage.x.shape
+        return (storage.x.reshape(count, 1, n, copy=False), storage.P.reshape(count, 1, n, n, copy=False),
+                np.ones((count, 1)), np.ones(1))
+
     def _manage_compiled(self, s: int, hit: np.ndarray, expected: np.ndarray, outside: np.ndarray,
                          w_end: float) -> None:
         bank = self.bank
         cfg = self.config.lifecycle
         columns = bank.columns
+        x, P, mu, _ = self._mixture_arrays()
         keep, misses, confirmed, hopeless, lost = record_and_manage(
             hit, expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
-            bank.storage.P, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
+            x, P, mu, columns["t"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_misses"], columns["last_event"], columns["confirmed_at"], columns["score"],
             columns["score_max"], *self._score_settings(s), outside,
         )

@@ -202,7 +202,7 @@ class ScanProcessor(CompiledStages):
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
         plot_stage = np.full(len(plots), -1, np.int8)
-        compiled_window = self.fused[s] and self.schedule.rotating[s]
+        compiled_window = (self.fused[s] or self.fused_imm_sensor[s]) and self.schedule.rotating[s]
         expected = outside = hit
         if n_tracks:
             if compiled_window:

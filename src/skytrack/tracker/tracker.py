@@ -27,6 +27,7 @@ from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.output import OutputClock, build_table, instant_record, reported_rows, tracks_arrow, tracks_frame
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
+from skytrack.filters.imm_kernels import imm_predict_matched
 from skytrack.tracker.window_kernels import report_cv
 
 __all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker"]
@@ -221,6 +222,12 @@ class Tracker:
 
     def _rows_at(self, instant: float, rows: np.ndarray) -> dict[str, np.ndarray]:
         bank = self.bank
+        if self.scan.fused_imm is not None:
+            # the compiled IMM: mixing, prediction and moment matching in one call
+            storage = bank.storage
+            x, P, probabilities = imm_predict_matched(storage.x, storage.P, storage.mu, rows, instant - bank.t[rows],
+                                                      *self.scan.fused_imm)
+            return instant_record(instant, rows, x, P, bank, self.config.output.full_covariance, probabilities)
         predicted = self.filter.predict(bank.state.take(rows), instant - bank.t[rows])
         estimate = predicted.estimate()
         # a multiple-model filter's probabilities (IMM: predicted to the instant, as the state is)

@@ -90,12 +90,37 @@ def _horizon(sensor_alt, target_alt):
     return np.sqrt(_TWO_K_R * hs + hs * hs) + np.sqrt(_TWO_K_R * ht + ht * ht)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _matched_position_eig(x, P, mu, pos_index, mean, block):
+    """Largest eigenvalue of the position block of one row's moment-matched covariance
+    (the arithmetic of :func:`skytrack.filters.imm_kernels.moment_match_rows`; exact for one mode)."""
+    M = x.shape[0]
+    dim = len(pos_index)
+    for a in range(dim):
+        acc = 0.0
+        for j in range(M):
+            acc += mu[j] * x[j, pos_index[a]]
+        mean[a] = acc
+    for a in range(dim):
+        pa = pos_index[a]
+        for b in range(a, dim):
+            pb = pos_index[b]
+            acc = 0.0
+            for j in range(M):
+                acc += mu[j] * (P[j, pa, pb] + (x[j, pa] - mean[a]) * (x[j, pb] - mean[b]))
+            block[a, b] = acc
+            block[b, a] = acc
+    return _max_eig_sym(block, dim)
+
+
 @njit(cache=True, nogil=True)
-def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t, status,
-                      hit_bits, n_events, n_misses, last_event, confirmed_at, score, score_max, log_miss, score_logic,
-                      confirm_score, drop_score, delete_drop, min_plots, outside):
+def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, x, P, mu, t,
+                      status, hit_bits, n_events, n_misses, last_event, confirmed_at, score, score_max, log_miss,
+                      score_logic, confirm_score, drop_score, delete_drop, min_plots, outside):
     """Events of this window, then the life-cycle decisions; returns the keep mask and counts
-    (misses, confirmed, hopeless, lost).  ``hit``/``expected`` cover the rows that existed before
+    (misses, confirmed, hopeless, lost).  The states are in mixture form (``x[N, M, n]``,
+    ``P[N, M, n, n]``, ``mu[N, M]``; a Gaussian bank is ``M = 1``, ``mu = 1``): a confirmed track
+    whose moment-matched position covariance has a standard deviation above ``max_sigma`` is lost.  ``hit``/``expected`` cover the rows that existed before
     the window's new tracks; the decisions cover all ``len(status)`` rows.  A miss adds
     ``log_miss`` to the score; with ``score_logic`` a tentative track is confirmed at
     ``confirm_score`` once it has ``min_plots`` plots among its last ``confirm_n`` events, and
@@ -120,6 +145,7 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
     lost = 0
     dim = len(pos_index)
     block = np.empty((dim, dim))
+    mean = np.empty(dim)
     for k in range(rows):
         if k < len(outside) and outside[k]:
             keep[k] = False
@@ -144,10 +170,7 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                     keep[k] = False
                     hopeless += 1
                 continue
-        for a in range(dim):
-            for b in range(dim):
-                block[a, b] = P[k, pos_index[a], pos_index[b]]
-        largest = _max_eig_sym(block, dim)
+        largest = _matched_position_eig(x[k], P[k], mu[k], pos_index, mean, block)
         faded = (score_max[k] - score[k] >= delete_drop) if score_logic else (n_misses[k] >= delete_misses)
         if faded or np.sqrt(max(largest, 0.0)) > max_sigma:
             keep[k] = False
@@ -156,18 +179,21 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
 
 
 @njit(cache=True, nogil=True)
-def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c, plot_mode3a, plot_mode_s,
-                       plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
-                       max_sigma, pos_index, x, P, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
+def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c, plot_mode3a, plot_mode_s,
+                    plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
+                    max_sigma, pos_index, x, P, mu, mu0, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
                        n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
                        score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, plot_range,
                        plot_azimuth,
                        plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside):
-    """The end of a window for a constant-velocity Gaussian bank with the standard columns, in place:
-    one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`), the
+    """The end of a window for a bank of constant-velocity-layout states with the standard columns,
+    in place: one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`;
+    every mode of a mixture starts from it with probabilities ``mu0``, as
+    :meth:`skytrack.filters.imm.IMMFilter.initiate`), the
     window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
     kept rows (:meth:`~skytrack.tracker.bank.TrackBank.keep`).  The arrays must have room for
-    ``size + len(new_plots)`` rows; without ``with_psi`` the psi arrays are not touched.
+    ``size + len(new_plots)`` rows; the states are in mixture form (:func:`record_and_manage`);
+    without ``with_psi`` the psi arrays are not touched.
     First the clutter map and the code counts learn from the window's plots
     (:meth:`skytrack.tracker.evidence.TrackScoring.observe`).
     Returns the new size and the counts (misses, confirmed, hopeless, lost)."""
@@ -177,15 +203,17 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
     for c in range(len(new_plots)):
         j = new_plots[c]
         k = size + c
-        for i in range(n):
-            x[k, i] = 0.0
-            for l in range(n):
-                P[k, i, l] = 0.0
-        for a in range(dim):
-            x[k, 2 * a] = plot_pos[j, a]
-            for b in range(dim):
-                P[k, 2 * a, 2 * b] = plot_cov[j, a, b]
-            P[k, 2 * a + 1, 2 * a + 1] = sigma_v * sigma_v
+        for mode in range(x.shape[1]):
+            mu[k, mode] = mu0[mode]
+            for i in range(n):
+                x[k, mode, i] = 0.0
+                for l in range(n):
+                    P[k, mode, i, l] = 0.0
+            for a in range(dim):
+                x[k, mode, 2 * a] = plot_pos[j, a]
+                for b in range(dim):
+                    P[k, mode, 2 * a, 2 * b] = plot_cov[j, a, b]
+                P[k, mode, 2 * a + 1, 2 * a + 1] = sigma_v * sigma_v
         if with_psi:
             psi[k] = False
             nis_avg[k] = 0.0
@@ -209,7 +237,7 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
         score_max[k] = 0.0
     rows = size + len(new_plots)
     keep, misses, confirmed, hopeless, lost = record_and_manage(
-        hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, P, t[:rows], status[:rows],
+        hit, expected, w_end, confirm_m, confirm_n, delete_misses, max_sigma, pos_index, x, P, mu, t[:rows], status[:rows],
         hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows], score[:rows],
         score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, outside)
     m = 0
@@ -217,10 +245,12 @@ def initiate_manage_cv(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode
         if not keep[k]:
             continue
         if m != k:
-            for i in range(n):
-                x[m, i] = x[k, i]
-                for l in range(n):
-                    P[m, i, l] = P[k, i, l]
+            for mode in range(x.shape[1]):
+                mu[m, mode] = mu[k, mode]
+                for i in range(n):
+                    x[m, mode, i] = x[k, mode, i]
+                    for l in range(n):
+                        P[m, mode, i, l] = P[k, mode, i, l]
             if with_psi:
                 psi[m] = psi[k]
                 nis_avg[m] = nis_avg[k]
