@@ -470,3 +470,54 @@ def test_many_targets_consistency():
     assert ev.summary["n_assigned"] >= 0.99 * T.size
     assert ev.summary["position_rmse_m"] == pytest.approx(100 * math.sqrt(3), rel=0.03)
     assert ev.summary["n_false_tracks"] == 0
+
+
+def _manoeuvre_case():
+    """Objects a and b fly straight (rows every 4 s, t = 0..76 s).  Track 1 follows a with a
+    velocity error of (3, 4, 0) m/s (5 m/s) and a position error of 30 m at t = 20..40 s
+    (6 instants) and (5, 12, 0) m/s (13 m/s), no position error elsewhere (14 instants);
+    track 2 follows b exactly."""
+    truth = pd.concat([truth_rows("a", (0, 0, 5000), V, STEPS), truth_rows("b", (0, 50e3, 6000), V, STEPS)])
+    inside = (STEPS >= 20) & (STEPS <= 40)
+    track_a = pd.concat([track_rows(1, (0, 0, 5000), V, STEPS[inside], offset=(30, 0, 0), vel_offset=(3, 4, 0)),
+                         track_rows(1, (0, 0, 5000), V, STEPS[~inside], vel_offset=(5, 12, 0))])
+    return truth, pd.concat([track_a, track_rows(2, (0, 50e3, 6000), V, STEPS)]), int(inside.sum())
+
+
+def test_errors_in_manoeuvre_segments_are_the_in_segment_offsets():
+    truth, tracks, n_inside = _manoeuvre_case()
+    # a's segment holds its 6 instants 20..40 s (ends included); b's lies after the window; c is no truth object
+    segments = [("a", 20.0, 40.0), ("b", 100.0, 120.0), ("c", 0.0, 76.0)]
+    ev = evaluate(tracks, truth, manoeuvre_segments=segments)
+    s = ev.summary
+    assert s["velocity_rmse_manoeuvre_mps"] == pytest.approx(5.0, rel=1e-12)
+    assert s["position_rmse_manoeuvre_m"] == pytest.approx(30.0, rel=1e-12)
+    # the whole-run figures mix both offsets over a's 20 and b's 20 assigned instants
+    assert s["velocity_rmse_mps"] == pytest.approx(math.sqrt((6 * 25 + 14 * 169) / 40), rel=1e-12)
+    assert n_inside == 6
+    assert (s["n_manoeuvre_segments"], s["n_manoeuvre_segments_visible"]) == (2, 1)
+    assert (s["n_manoeuvre_truth_instants"], s["n_manoeuvre_assigned"], s["n_manoeuvre_velocity_samples"]) == (6, 6, 6)
+    flagged = ev.assignments[ev.assignments["in_manoeuvre"]]
+    assert sorted(flagged["time"]) == [20.0, 24.0, 28.0, 32.0, 36.0, 40.0]
+    assert set(flagged["target_id"]) == {"a"}
+    assert any("1 of 3 manoeuvre segments" in note for note in ev.notes)
+    assert any(row[0].startswith("  in manoeuvres (1 segments, 6 samples)") for row in ev.summary_rows())
+    # the same segments as a table give the same figures; without segments no such keys
+    table = pd.DataFrame(segments, columns=["target_id", "start", "end"])
+    assert evaluate(tracks, truth, manoeuvre_segments=table).summary == s
+    assert "velocity_rmse_manoeuvre_mps" not in evaluate(tracks, truth).summary
+
+
+def test_manoeuvre_segment_of_an_untracked_instant_and_bad_segments():
+    truth, tracks, _ = _manoeuvre_case()
+    # track 1 is missing at 20 and 24 s: the segment still has 6 visible truth instants, 4 assigned
+    tracks = tracks[~((tracks["track_id"] == 1) & tracks["time"].isin([20.0, 24.0]))]
+    s = evaluate(tracks, truth, manoeuvre_segments=[("a", 18.0, 41.0)]).summary
+    assert (s["n_manoeuvre_truth_instants"], s["n_manoeuvre_assigned"]) == (6, 4)
+    assert s["velocity_rmse_manoeuvre_mps"] == pytest.approx(5.0, rel=1e-12)
+    empty = evaluate(tracks, truth, manoeuvre_segments=[]).summary
+    assert empty["n_manoeuvre_segments"] == 0 and math.isnan(empty["velocity_rmse_manoeuvre_mps"])
+    with pytest.raises(ValueError, match="before start"):
+        evaluate(tracks, truth, manoeuvre_segments=[("a", 40.0, 20.0)])
+    with pytest.raises(ValueError, match="target_id, start, end"):
+        evaluate(tracks, truth, manoeuvre_segments=[("a", 20.0)])

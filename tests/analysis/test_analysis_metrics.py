@@ -20,6 +20,7 @@ from skytrack.analysis.metrics import (
     cutoff_matching,
     euclidean_errors,
     gospa,
+    in_intervals,
     nees,
     nees_band,
     ospa,
@@ -291,3 +292,25 @@ def test_manoeuvring_marks_the_turn_and_the_minute_after_it():
     shuffle = np.random.default_rng(1).permutation(100)
     np.testing.assert_array_equal(manoeuvring(obj[shuffle], t[shuffle], v[shuffle]), expected[shuffle])
     assert manoeuvring(obj[:0], t[:0], v[:0]).size == 0
+
+
+def test_in_intervals_by_hand_with_overlap_tolerance_and_shuffled_input():
+    """Object 0 at t = 0, 1, 2, 3; object 1 at t = 0, 1.  Intervals: object 0 [0.5, 2] (holds
+    t = 1, 2), object 0 [2, 3] (overlaps the first at t = 2: t = 2, 3), object 1 [1.0005, 4]
+    (t = 1 only with a tolerance of 1 ms), object 0 [5, 6] (none).  A sample in two intervals
+    is inside once; the counts are per interval."""
+    obj = np.array([0, 0, 0, 0, 1, 1])
+    t = np.array([0.0, 1.0, 2.0, 3.0, 0.0, 1.0])
+    intervals = (np.array([0, 0, 1, 0]), np.array([0.5, 2.0, 1.0005, 5.0]), np.array([2.0, 3.0, 4.0, 6.0]))
+    inside, count = in_intervals(obj, t, *intervals, tolerance=1e-3)
+    np.testing.assert_array_equal(inside, [False, True, True, True, False, True])
+    np.testing.assert_array_equal(count, [2, 2, 1, 0])
+    inside, count = in_intervals(obj, t, *intervals)
+    np.testing.assert_array_equal(inside, [False, True, True, True, False, False])
+    np.testing.assert_array_equal(count, [2, 2, 0, 0])
+    shuffle = np.array([5, 2, 0, 4, 3, 1])
+    inside, count = in_intervals(obj[shuffle], t[shuffle], *intervals, tolerance=1e-3)
+    np.testing.assert_array_equal(inside, np.array([False, True, True, True, False, True])[shuffle])
+    np.testing.assert_array_equal(count, [2, 2, 1, 0])
+    inside, count = in_intervals(obj[:0], t[:0], *intervals)
+    assert inside.size == 0 and count.tolist() == [0, 0, 0, 0]

@@ -23,6 +23,11 @@ What :func:`evaluate` does, at every output instant ``t_k``:
    assigned fraction, number of truth changes (swaps), false flag (assigned fraction
    below ``false_track_min_assigned_fraction``); OSPA and GOSPA (metrics module) between
    the visible truth set and the confirmed track set.
+4. **Manoeuvre segments** (optional ``manoeuvre_segments``: ``(target_id, start, end)``
+   time intervals of truth objects, e.g. the segments of a manoeuvre rule such as spec 004
+   R19's, found by the caller): the assigned pairs whose truth instant lies in a segment of
+   its own object (ends included, :func:`metrics.in_intervals`) give the position and
+   velocity RMSE in manoeuvres, with the numbers of segments and samples behind them.
 
 The output instants are the track times (a regular grid's empty instants filled in, and
 extended back to ``start_time_s`` when given) or ``output_times``.  Tracks without ``z``
@@ -56,6 +61,7 @@ from skytrack.analysis.metrics import (
     MANOEUVRE_ACCELERATION_MPS2,
     MANOEUVRE_AFTERMATH_S,
     cutoff_matching,
+    in_intervals,
     manoeuvring,
     nees,
     nees_band,
@@ -116,6 +122,7 @@ def evaluate(
     coverage_min_visible_s: float = DEFAULT_COVERAGE_S,
     confirmed_statuses: Sequence[str] = CONFIRMED_STATUSES,
     time_tolerance_s: float = 1e-3,
+    manoeuvre_segments: pd.DataFrame | Sequence[tuple[Any, float, float]] | None = None,
 ) -> Evaluation:
     """Evaluate ``tracks`` against ``truth`` (both FORMATS.md tables); see the module docstring.
 
@@ -128,6 +135,10 @@ def evaluate(
     to it; default: the first output instant.
     ``horizontal`` forces (True) or forbids (False) horizontal evaluation; None decides from
     the tracks' ``z``.
+    ``manoeuvre_segments`` (a table with ``target_id, start, end`` or ``(target_id, start,
+    end)`` tuples, times in s) adds ``position_rmse_manoeuvre_m``,
+    ``velocity_rmse_manoeuvre_mps`` and their counts to the summary and ``in_manoeuvre`` to
+    the assignments (module docstring, step 4).
     """
     notes: list[str] = []
     _require_columns(tracks, "tracks", ["time", "track_id", "x", "y"])
@@ -262,8 +273,59 @@ def evaluate(
         "start_time_s": window_start if n_steps else None,
     }
     summary = _summary(grid, per_target, per_track, sets, pos_sq, pos_err, vel_sq, vel_ok, dim, len(tracks))
+    if manoeuvre_segments is not None:
+        in_manoeuvre, manoeuvre_figures, manoeuvre_notes = _manoeuvre_errors(
+            manoeuvre_segments, prepared.target_ids, vt_target, grid[vt_step], ti, pos_sq, vel_sq, vel_ok,
+            time_tolerance_s)
+        assignments["in_manoeuvre"] = in_manoeuvre
+        summary.update(manoeuvre_figures)
+        notes += manoeuvre_notes
     return Evaluation(parameters, dimension, grid, source, series, per_target, per_track, assignments, coverage,
                       summary, nees_info, notes)
+
+
+def _segment_table(segments) -> pd.DataFrame:
+    """``manoeuvre_segments`` as a ``target_id`` (str), ``start``, ``end`` table, checked."""
+    if isinstance(segments, pd.DataFrame):
+        _require_columns(segments, "manoeuvre segments", ["target_id", "start", "end"])
+        frame = segments[["target_id", "start", "end"]].reset_index(drop=True)
+    else:
+        rows = [tuple(row) for row in segments]
+        if any(len(row) != 3 for row in rows):
+            raise ValueError("manoeuvre segments: each segment is (target_id, start, end)")
+        frame = pd.DataFrame(rows, columns=["target_id", "start", "end"])
+    _require_not_null(frame, "manoeuvre segments", "target_id")
+    _require_finite(frame, "manoeuvre segments", ["start", "end"])
+    start, end = frame["start"].to_numpy(dtype=float), frame["end"].to_numpy(dtype=float)
+    if np.any(end < start):
+        k = int(np.flatnonzero(end < start)[0])
+        raise ValueError(f"manoeuvre segments table, row {k}: end {end[k]!r} is before start {start[k]!r}")
+    return pd.DataFrame({"target_id": frame["target_id"].astype(str), "start": start, "end": end})
+
+
+def _manoeuvre_errors(segments, target_ids, vt_target, vt_time, ti, pos_sq, vel_sq, vel_ok,
+                      tolerance) -> tuple[np.ndarray, dict[str, Any], list[str]]:
+    """Which assigned pairs lie in a manoeuvre segment of their truth object, and the RMSE over them."""
+    table = _segment_table(segments)
+    code = pd.Index(np.asarray(target_ids).astype(str)).get_indexer(table["target_id"])
+    known = code >= 0
+    notes = []
+    if not known.all():
+        notes.append(f"{int((~known).sum())} of {len(table)} manoeuvre segments name objects that are not in the truth")
+    inside, count = in_intervals(vt_target, vt_time, code[known], table["start"].to_numpy()[known],
+                                 table["end"].to_numpy()[known], tolerance)
+    in_pair = inside[ti]
+    vel_in = in_pair & vel_ok
+    figures = {
+        "n_manoeuvre_segments": int(known.sum()),
+        "n_manoeuvre_segments_visible": int((count > 0).sum()),
+        "n_manoeuvre_truth_instants": int(inside.sum()),
+        "n_manoeuvre_assigned": int(in_pair.sum()),
+        "n_manoeuvre_velocity_samples": int(vel_in.sum()),
+        "position_rmse_manoeuvre_m": rmse(np.sqrt(pos_sq[in_pair])),
+        "velocity_rmse_manoeuvre_mps": rmse(np.sqrt(vel_sq[vel_in])),
+    }
+    return in_pair, figures, notes
 
 
 def _nees_summary(rows: pd.DataFrame, pos_err, vel_err, axes, vel_axes, has_velocity, tracking_dim) -> dict[str, Any]:

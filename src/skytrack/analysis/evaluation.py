@@ -106,6 +106,15 @@ class Evaluation:
         return [("  straight flight / in or after manoeuvres",
                  f"{num(self.nees['quiet_mean'], '{:.2f}')} / {num(self.nees['manoeuvre_mean'], '{:.2f}')}", "")]
 
+    def _manoeuvre_rows(self, num) -> list[tuple[str, str, str]]:
+        """Position and velocity RMSE in the manoeuvre segments, when the evaluation was given them."""
+        s = self.summary
+        if "velocity_rmse_manoeuvre_mps" not in s:
+            return []
+        return [(f"  in manoeuvres ({s['n_manoeuvre_segments_visible']} segments, {s['n_manoeuvre_assigned']} samples): "
+                 "position / velocity",
+                 f"{num(s['position_rmse_manoeuvre_m'])} / {num(s['velocity_rmse_manoeuvre_mps'])}", "m, m/s")]
+
     def summary_rows(self) -> list[tuple[str, str, str]]:
         """(metric, value, unit) string rows for a table (e.g. ``rich.table.Table.add_row``)."""
         s = self.summary
@@ -126,6 +135,7 @@ class Evaluation:
             rows.append(("  horizontal / vertical", f"{num(s['position_rmse_horizontal_m'])} / {num(s['position_rmse_vertical_m'])}", "m"))
         rows += [
             ("velocity RMSE", num(s["velocity_rmse_mps"]), "m/s"),
+            *self._manoeuvre_rows(num),
             (
                 f"NEES mean ({self.nees['state']}, {self.nees['covariance'].split(' ')[0]} covariance)",
                 f"{num(self.nees['mean'], '{:.2f}')} (expected {self.nees['expected']}, 95% band "

@@ -31,6 +31,10 @@ more than ``c`` apart, so pairs never cross steps).
 Error statistics: Euclidean errors, RMSE, normalised estimation error squared
 ``NEES = e^T P^-1 e`` and its two-sided chi-square band for the mean of ``N`` samples of
 dimension ``n``: ``[chi2_{N n}^-1(a/2) / N, chi2_{N n}^-1(1 - a/2) / N]`` (spec 004 R20, TV19).
+
+Truth samples in time intervals of their own object (:func:`in_intervals`: the manoeuvre
+segments of an evaluation) and in or after a manoeuvre by an acceleration threshold
+(:func:`manoeuvring`: the NEES split).
 """
 
 from __future__ import annotations
@@ -417,3 +421,35 @@ def manoeuvring(target: np.ndarray, time: np.ndarray, velocity: np.ndarray,
     result = np.zeros(count, dtype=bool)
     result[order] = recent
     return result
+
+
+def in_intervals(sample_object: np.ndarray, sample_time: np.ndarray, interval_object: np.ndarray,
+                 interval_start: np.ndarray, interval_end: np.ndarray,
+                 tolerance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Which samples fall in a closed time interval of their own object, and how many per interval.
+
+    Sample ``k`` (object ``sample_object[k]`` at ``sample_time[k]``) is inside interval ``j``
+    when the objects are equal and ``start_j - tolerance <= t_k <= end_j + tolerance``.
+    Returns ``(inside[n_samples], count[n_intervals])``: whether each sample lies in at least
+    one interval (intervals of one object may overlap; a sample is still counted once in
+    ``inside``), and the number of samples in each interval.  Objects are integer codes.
+    """
+    obj = np.asarray(sample_object, dtype=np.int64)
+    t = np.asarray(sample_time, dtype=float)
+    order = np.lexsort((t, obj))
+    obj_sorted, t_sorted = obj[order], t[order]
+    lo = np.empty(len(interval_object), np.int64)
+    hi = np.empty(len(interval_object), np.int64)
+    for j, (o, start, end) in enumerate(zip(np.asarray(interval_object, np.int64), interval_start, interval_end)):
+        first, last = np.searchsorted(obj_sorted, o, "left"), np.searchsorted(obj_sorted, o, "right")
+        times = t_sorted[first:last]
+        lo[j] = first + np.searchsorted(times, float(start) - tolerance, "left")
+        hi[j] = first + np.searchsorted(times, float(end) + tolerance, "right")
+    count = np.maximum(hi - lo, 0)
+    # +1 where an interval's samples begin, -1 past their end: covered where the running sum is positive
+    edges = np.zeros(t.size + 1, np.int64)
+    np.add.at(edges, lo[count > 0], 1)
+    np.add.at(edges, hi[count > 0], -1)
+    inside = np.zeros(t.size, dtype=bool)
+    inside[order] = np.cumsum(edges[:-1]) > 0
+    return inside, count
