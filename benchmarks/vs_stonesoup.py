@@ -183,10 +183,10 @@ def run_stonesoup(python: Path, folder: Path, plots: Path, out: Path, config: di
 
 
 # ----------------------------------------------------------------------------------- skytrack
-def run_skytrack_command(folder: Path, plots: Path, out: Path) -> None:
-    """``skytrack track`` with no option: the tracks that are evaluated."""
+def run_skytrack_command(folder: Path, plots: Path, out: Path, options: tuple[str, ...] = ()) -> None:
+    """``skytrack track`` with no option (or ``options``): the tracks that are evaluated."""
     command = [sys.executable, "-m", "skytrack", "track", str(plots), "--sensors", str(folder / "sensors.json"),
-               "-o", str(out)]
+               "-o", str(out), *options]
     done = subprocess.run(command, check=False, capture_output=True, text=True, env={**os.environ, **ONE_THREAD})
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed:\n{done.stdout}\n{done.stderr}")
@@ -249,17 +249,20 @@ def output_instants(folder: Path, plots_frame) -> tuple:
     return phase + period * (np.arange(first, last + 1) + 1.0), float(times.min())
 
 
-def evaluate_tracks(tracks_path: Path, truth, instants, start_s: float) -> dict:
-    """The summary of ``skytrack.analysis.evaluate`` with the figures this benchmark prints."""
+def evaluate_tracks(tracks_path: Path, truth, instants, start_s: float, manoeuvre_segments=None) -> dict:
+    """The summary of ``skytrack.analysis.evaluate`` with the figures this benchmark prints
+    (and those of ``manoeuvre_segments``, passed on to ``evaluate``, when given)."""
     from skytrack.analysis import evaluate
     from skytrack.io import read_tracks
 
     evaluation = evaluate(read_tracks(tracks_path), truth, cutoff_m=GOSPA_CUTOFF_M, association_gate_m=GOSPA_CUTOFF_M,
-                          output_times=instants, start_time_s=start_s)
+                          output_times=instants, start_time_s=start_s, manoeuvre_segments=manoeuvre_segments)
     summary = evaluation.summary
     keys = ("gospa_mean_m", "gospa_missed_mean", "gospa_false_mean", "n_false_tracks", "track_breaks",
             "position_rmse_m", "velocity_rmse_mps", "n_tracks", "continuity_mean", "n_truth_objects",
             "time_to_first_track_mean_s", "ospa_mean_m")
+    if manoeuvre_segments is not None:
+        keys += tuple(key for key in summary if "manoeuvre" in key)
     figures = {key: summary[key] for key in keys}
     figures["gospa_localisation_rms_m"] = math.sqrt(summary["gospa_localisation_mean"])
     at_once = evaluation.series["n_truth_visible"]
