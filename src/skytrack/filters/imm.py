@@ -192,11 +192,17 @@ class IMMFilter(BatchFilter):
         return c / c.sum(axis=1, keepdims=True), x0, linalg.symmetrize(P0)
 
     def predict(self, state: MixtureState, dt, context: dict | None = None) -> MixtureState:
+        """Mixing over ``Pi(dt)`` and each mode predicted by ``dt``.  ``context["mixing_dt"]`` (per
+        row) mixes over another interval: a tracker mixes a track once per scan, over the interval
+        to its reference time, and predicts the mixed modes to each candidate plot's own time."""
         dt = np.broadcast_to(self.transition_dt(dt), (len(state),))
+        mixing_dt = dt if context is None or context.get("mixing_dt") is None else np.broadcast_to(
+            self.transition_dt(context["mixing_dt"]), (len(state),))
         forced = bool(context is not None and context.get("manoeuvre") and self.manoeuvre_mode is not None)
         if self._modes is not None and (context is None or context.get("q_scale") is None):
-            return self._predict_compiled(state, np.ascontiguousarray(dt, dtype=float), forced)
-        c, x0, P0 = self.mix(state, dt)
+            return self._predict_compiled(state, np.ascontiguousarray(dt, dtype=float),
+                                          np.ascontiguousarray(mixing_dt, dtype=float), forced)
+        c, x0, P0 = self.mix(state, mixing_dt)
         xs, Ps = np.empty_like(x0), np.empty_like(P0)
         for j, mode in enumerate(self.modes):
             predicted = mode.predict(GaussianState(x0[:, j], P0[:, j]), dt, context)
@@ -208,7 +214,8 @@ class IMMFilter(BatchFilter):
             c[:, self.manoeuvre_mode] = 1.0
         return MixtureState(xs, Ps, c)
 
-    def _predict_compiled(self, state: MixtureState, dt: np.ndarray, forced: bool) -> MixtureState:
+    def _predict_compiled(self, state: MixtureState, dt: np.ndarray, mixing_dt: np.ndarray,
+                          forced: bool) -> MixtureState:
         transition = self.transition
         if isinstance(transition, SojournTransition):
             sojourn, fixed = np.array(transition.sojourn_s), np.zeros((self.n_modes, self.n_modes))
@@ -216,7 +223,7 @@ class IMMFilter(BatchFilter):
             sojourn, fixed = np.zeros(0), transition.matrix
         force = np.full(len(state), forced)
         x, P, c = imm_predict(np.ascontiguousarray(state.x), np.ascontiguousarray(state.P),
-                              np.ascontiguousarray(state.mu), dt, self._modes, sojourn, fixed, force,
+                              np.ascontiguousarray(state.mu), dt, mixing_dt, self._modes, sojourn, fixed, force,
                               -1 if self.manoeuvre_mode is None else self.manoeuvre_mode)
         if linalg.is_counting():
             K, M, n = state.x.shape

@@ -68,32 +68,34 @@ def _mode_row(model):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def turn_coefficients(omega, dt):
-    """``(sin(wT)/w, (1 - cos wT)/w, cos wT, sin wT)`` of the CT transition (series below ``|wT| < SMALL_TURN``)."""
+def turn_terms(omega, dt):
+    """What CT(omega) over ``dt`` needs, from one sine and one cosine of the half angle:
+    ``(sin(wT)/w, (1 - cos wT)/w, cos wT, sin wT)`` of the transition (series below
+    ``|wT| < SMALL_TURN``) and ``a = (wT - sin wT)/w^3``, ``b = (1 - cos wT)/w^2`` of its
+    continuous-noise Q over ``T = |dt|`` (series below ``|wT| < SMALL_TURN_Q``):
+    ``Q_xx = Q_yy = 2 q a``, ``Q_x,vx = Q_y,vy = q b``, ``Q_x,vy = -Q_vx,y = q w a``
+    (:mod:`skytrack.models.turn`)."""
     wt = omega * dt
+    half_sin = math.sin(0.5 * wt)
+    half_cos = math.cos(0.5 * wt)
+    sin_wt = 2.0 * half_sin * half_cos
+    cos_wt = 1.0 - 2.0 * half_sin * half_sin
     if abs(wt) < SMALL_TURN:
         s_over = dt
         one_minus_c_over = omega * dt * dt / 2.0
     else:
-        s_over = math.sin(wt) / omega
-        one_minus_c_over = 2.0 * math.sin(0.5 * wt) ** 2 / omega
-    return s_over, one_minus_c_over, math.cos(wt), math.sin(wt)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def turn_noise_terms(omega, step):
-    """``a = (wT - sin wT)/w^3`` and ``b = (1 - cos wT)/w^2`` of CT's continuous-noise Q over ``step``
-    (their series below ``|wT| < SMALL_TURN_Q``): ``Q_xx = Q_yy = 2 q a``, ``Q_x,vx = Q_y,vy = q b``,
-    ``Q_x,vy = -Q_vx,y = q w a`` (:mod:`skytrack.models.turn`)."""
-    wt = omega * step
+        s_over = sin_wt / omega
+        one_minus_c_over = 2.0 * half_sin * half_sin / omega
+    step = abs(dt)
     x2 = wt * wt
     if abs(wt) < SMALL_TURN_Q:
         a_ = step**3 * (1 / 6 - x2 * (1 / 120 - x2 * (1 / 5040 - x2 / 362880)))
         b_ = step * step * (1 / 2 - x2 * (1 / 24 - x2 * (1 / 720 - x2 / 40320)))
     else:
-        a_ = (wt - math.sin(wt)) / omega**3
-        b_ = 2.0 * math.sin(0.5 * wt) ** 2 / (omega * omega)
-    return a_, b_
+        # (|w|T - sin(|w|T)) / |w|^3 with sin(|wT|) = sign(wT) sin(wT)
+        a_ = (abs(wt) - (sin_wt if wt >= 0.0 else -sin_wt)) / abs(omega) ** 3
+        b_ = 2.0 * half_sin * half_sin / (omega * omega)
+    return s_over, one_minus_c_over, cos_wt, sin_wt, a_, b_
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -113,7 +115,7 @@ def _predict_ct_mode(x0, P0, dt, omega, q, q_z, ndim, x_out, P_out, G, column, r
     """``F x0``, ``F P0 F^T + Q`` of a CT(omega) mode with the transition's block structure
     (``G = P0 F^T`` row by row, then ``F G`` column by column; ``G``, ``column``, ``result`` scratch)."""
     n = 2 * ndim
-    s_over, omc_over, c, s = turn_coefficients(omega, dt)
+    s_over, omc_over, c, s, a_, b_ = turn_terms(omega, dt)
     _turn_apply(x0, x_out, s_over, omc_over, c, s, dt, ndim)
     for b in range(n):
         _turn_apply(P0[b], G[b], s_over, omc_over, c, s, dt, ndim)
@@ -127,7 +129,6 @@ def _predict_ct_mode(x0, P0, dt, omega, q, q_z, ndim, x_out, P_out, G, column, r
         for b in range(a + 1, n):
             P_out[a, b] = P_out[b, a]
     step = abs(dt)
-    a_, b_ = turn_noise_terms(omega, step)
     P_out[0, 0] += 2.0 * q * a_
     P_out[2, 2] += 2.0 * q * a_
     P_out[1, 1] += q * step
@@ -198,20 +199,73 @@ def _predict_cv_mode(x0, P0, dt, q, q_z, ndim, x_out, P_out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def mix_scratch(M, n):
-    """The scratch arrays of :func:`mix_predict_row`, allocated once per call of a kernel."""
-    return (np.empty((M, M)), np.empty((M, M)), np.empty(n), np.empty((n, n)), np.empty((n, n)), np.empty(n),
-            np.empty(n), np.empty((M, n, n)), np.empty(n))
+def predict_mode_position(mode, x0, P0, dt, ndim, x_out, P_pos, G):
+    """``F x0`` and the position block ``P_pos[ndim, ndim]`` of ``F P0 F^T + Q`` of one mode, with
+    the arithmetic of :func:`predict_mode` (the gate and the search need no more; ``G`` scratch)."""
+    n = 2 * ndim
+    step = abs(dt)
+    if mode[0] == KIND_CV:
+        for a in range(ndim):
+            i = 2 * a
+            x_out[i] = x0[i] + dt * x0[i + 1]
+            x_out[i + 1] = x0[i + 1]
+            for b in range(a, ndim):
+                j = 2 * b
+                r00 = P0[i, j] + dt * P0[i + 1, j]
+                r01 = P0[i, j + 1] + dt * P0[i + 1, j + 1]
+                P_pos[a, b] = r00 + r01 * dt
+                if a == b:
+                    qa = mode[3] if a == 2 else mode[2]
+                    P_pos[a, b] += qa * step * step * step / 3.0
+                P_pos[b, a] = P_pos[a, b]
+        return
+    omega, q = mode[1], mode[2]
+    s_over, omc_over, c, s, a_, _ = turn_terms(omega, dt)
+    _turn_apply(x0, x_out, s_over, omc_over, c, s, dt, ndim)
+    # G[l, a] = (P0 F^T)[l, 2a] (the position rows of F, as _turn_apply writes them), then
+    # P_pos[b, a] = (F G)[2b, a] for b >= a: the arithmetic of _predict_ct_mode
+    for l in range(n):
+        v = P0[l]
+        G[l, 0] = v[0] + s_over * v[1] - omc_over * v[3]
+        G[l, 1] = omc_over * v[1] + v[2] + s_over * v[3]
+        if ndim == 3:
+            G[l, 2] = v[4] + dt * v[5]
+    for a in range(ndim):
+        P_pos[0, a] = P_pos[a, 0] = G[0, a] + s_over * G[1, a] - omc_over * G[3, a]
+    P_pos[1, 1] = omc_over * G[1, 1] + G[2, 1] + s_over * G[3, 1]
+    if ndim == 3:
+        P_pos[1, 2] = P_pos[2, 1] = omc_over * G[1, 2] + G[2, 2] + s_over * G[3, 2]
+        P_pos[2, 2] = G[4, 2] + dt * G[5, 2]
+    P_pos[0, 0] += 2.0 * q * a_
+    P_pos[1, 1] += 2.0 * q * a_
+    if ndim == 3:
+        P_pos[2, 2] += mode[3] * step * step * step / 3.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, scratch):
-    """One row of :func:`imm_predict`: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` mixed over ``Pi(dt)``
-    and predicted per mode into ``x_out``, ``P_out``, ``c_out`` (one-hot on ``forced_mode`` when
-    it is >= 0); ``scratch`` is :func:`mix_scratch`'s."""
-    Pi, weight, x0, P0, G, column, result, S, e = scratch
+def predict_mode(mode, x0, P0, dt, ndim, x_out, P_out, G, column, result):
+    """``F x0``, ``F P0 F^T + Q(|dt|)`` of one mode (a row of :func:`mode_table`); ``G``,
+    ``column``, ``result`` scratch."""
+    if mode[0] == KIND_CV:
+        _predict_cv_mode(x0, P0, dt, mode[2], mode[3], ndim, x_out, P_out)
+    else:
+        _predict_ct_mode(x0, P0, dt, mode[1], mode[2], mode[3], ndim, x_out, P_out, G, column, result)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_scratch(M, n):
+    """The scratch arrays of :func:`mix_row` and :func:`mix_predict_row`, allocated once per call of a kernel."""
+    return (np.empty((M, M)), np.empty((M, M)), np.empty((n, n)), np.empty(n), np.empty(n), np.empty((M, n, n)),
+            np.empty(n), np.empty((M, n)), np.empty((M, n, n)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_row(x, P, mu, dt, sojourn, fixed, forced_mode, x0, P0, c_out, scratch):
+    """Mixing of one row: ``x[M, n]``, ``P[M, n, n]``, ``mu[M]`` over ``Pi(dt)`` into the mixed
+    ``x0[M, n]``, ``P0[M, n, n]`` and the predicted probabilities ``c_out`` (one-hot on
+    ``forced_mode`` when it is >= 0); ``scratch`` is :func:`mix_scratch`'s."""
+    Pi, weight, _, _, _, S, e, _, _ = scratch
     M, n = x.shape
-    ndim = n // 2
     transition_row(dt, sojourn, fixed, Pi)
     total = 0.0
     for j in range(M):
@@ -228,7 +282,7 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
     # P0_j = sum_i w_ij (P_i + d_i d_i^T) - e_j e_j^T with d_i, e_j taken from mode 0's mean (the
     # same algebra as sum_i w_ij (P_i + (x_i - x0_j)(...)^T), a third of the products, and no
     # cancellation: the offsets between modes are small where the positions are large)
-    for i in range(M):
+    for i in range(1, M):  # S_0 = P_0: mode 0's offset is zero
         for a in range(n):
             d = x[i, a] - x[0, a]
             for b in range(a, n):
@@ -239,28 +293,34 @@ def mix_predict_row(x, P, mu, dt, modes, sojourn, fixed, forced_mode, x_out, P_o
             for i in range(M):
                 acc += weight[i, j] * (x[i, a] - x[0, a])
             e[a] = acc
-            x0[a] = x[0, a] + acc
+            x0[j, a] = x[0, a] + acc
         for a in range(n):
             for b in range(a, n):
-                acc = 0.0
-                for i in range(M):
+                acc = weight[0, j] * P[0, a, b]
+                for i in range(1, M):
                     acc += weight[i, j] * S[i, a, b]
-                P0[a, b] = acc - e[a] * e[b]
-                P0[b, a] = P0[a, b]
-        if modes[j, 0] == KIND_CV:
-            _predict_cv_mode(x0, P0, dt, modes[j, 2], modes[j, 3], ndim, x_out[j], P_out[j])
-            continue
-        _predict_ct_mode(x0, P0, dt, modes[j, 1], modes[j, 2], modes[j, 3], ndim, x_out[j], P_out[j], G, column,
-                         result)
+                P0[j, a, b] = acc - e[a] * e[b]
+                P0[j, b, a] = P0[j, a, b]
     if forced_mode >= 0:
         for j in range(M):
             c_out[j] = 1.0 if j == forced_mode else 0.0
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def mix_predict_row(x, P, mu, dt, mixing_dt, modes, sojourn, fixed, forced_mode, x_out, P_out, c_out, scratch):
+    """One row of :func:`imm_predict`: :func:`mix_row` over ``Pi(mixing_dt)``, then every mode
+    predicted by ``dt`` (:func:`predict_mode`) into ``x_out``, ``P_out``."""
+    _, _, G, column, result, _, _, x0, P0 = scratch
+    M, n = x.shape
+    mix_row(x, P, mu, mixing_dt, sojourn, fixed, forced_mode, x0, P0, c_out, scratch)
+    for j in range(M):
+        predict_mode(modes[j], x0[j], P0[j], dt, n // 2, x_out[j], P_out[j], G, column, result)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
-    """Mixing and mode-matched prediction of rows ``x[K, M, n]``, ``P[K, M, n, n]``, ``mu[K, M]``
-    by ``dt[K]``; returns the predicted ``x``, ``P`` and ``c`` (one-hot on ``forced_mode`` where
+def imm_predict(x, P, mu, dt, mixing_dt, modes, sojourn, fixed, force, forced_mode):
+    """Mixing over ``Pi(mixing_dt[K])`` and mode-matched prediction by ``dt[K]`` of rows
+    ``x[K, M, n]``, ``P[K, M, n, n]``, ``mu[K, M]``; returns the predicted ``x``, ``P`` and ``c`` (one-hot on ``forced_mode`` where
     ``force``)."""
     K, M, n = x.shape
     x_out = np.empty_like(x)
@@ -268,7 +328,7 @@ def imm_predict(x, P, mu, dt, modes, sojourn, fixed, force, forced_mode):
     c_out = np.empty_like(mu)
     scratch = mix_scratch(M, n)
     for k in range(K):
-        mix_predict_row(x[k], P[k], mu[k], dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
+        mix_predict_row(x[k], P[k], mu[k], dt[k], mixing_dt[k], modes, sojourn, fixed, forced_mode if force[k] else -1,
                         x_out[k], P_out[k], c_out[k], scratch)
     return x_out, P_out, c_out
 
@@ -312,7 +372,7 @@ def imm_predict_matched(x, P, mu, rows, dt, modes, sojourn, fixed):
     scratch = mix_scratch(M, n)
     for r in range(K):
         k = rows[r]
-        mix_predict_row(x[k], P[k], mu[k], dt[r], modes, sojourn, fixed, -1, xp, Pp, c_out[r], scratch)
+        mix_predict_row(x[k], P[k], mu[k], dt[r], dt[r], modes, sojourn, fixed, -1, xp, Pp, c_out[r], scratch)
         for a in range(n):
             acc = 0.0
             for j in range(M):

@@ -4,10 +4,12 @@
 continuous-noise CV/CT modes of :mod:`skytrack.filters.imm_kernels`) what
 :meth:`skytrack.tracker.scan.ScanProcessor._associate` composes from the filter's steps:
 
-1. each track mixed and predicted to its reference time; the moment-matched position and the
-   spread ``sqrt(lambda_max)`` of its covariance bound the candidate search (the compiled grid of
+1. each track mixed once, over ``Pi`` of the interval to its reference time (one IMM cycle per
+   scan), and predicted to that time; the moment-matched position and the spread
+   ``sqrt(lambda_max)`` of its covariance bound the candidate search (the compiled grid of
    :mod:`skytrack.association.grid_kernels`);
-2. each candidate mixed and predicted to its plot's own time; the pair's measurement (a 2-D
+2. each candidate's modes predicted from the track's mixed ones to its plot's own time (the
+   mean and position block only: all the gate and the likelihood use); the pair's measurement (a 2-D
    plot without Mode C re-placed at its track's Mode C altitude, as
    :func:`skytrack.tracker.kernels.gate_stage_cv` does); the gate on ``d^2`` of the moment-
    matched prediction (weights ``c``, spread of means included), and the mixture likelihood
@@ -15,11 +17,12 @@ continuous-noise CV/CT modes of :mod:`skytrack.filters.imm_kernels`) what
    ``innovation.loglik``);
 3. the score gains, costs and the assignment (:func:`skytrack.tracker.stage_kernel.pair_evidence`
    and :func:`skytrack.association.kernels.assign_clusters`, as for the CV stage);
-4. the chosen pairs updated mode by mode (Joseph form), ``mu_j = c_j L_j / sum_i c_i L_i``, the
+4. the chosen pairs predicted in full and updated mode by mode (Joseph form), ``mu_j = c_j L_j / sum_i c_i L_i``, the
    two-point start of a tentative track's second plot, and the bank's columns.
 
 ``forced_mode >= 0`` is the manoeuvre gate: the prediction of that mode alone (``c`` one-hot).
-The composed path with ``IMMFilter`` is the reference; tests hold the two equal.
+The composed path with ``IMMFilter`` is the reference (its ``mixing_dt`` context is the mixing
+interval of step 1); tests hold the two equal.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from skytrack.association.kernels import assign_clusters
-from skytrack.filters.imm_kernels import mix_predict_row, mix_scratch
+from skytrack.filters.imm_kernels import mix_row, mix_scratch, predict_mode, predict_mode_position
 from skytrack.models.conversion_kernels import place_2d
 from skytrack.tracker.evidence import LOG_2PI
 from skytrack.tracker.kernels import (
@@ -40,11 +43,13 @@ from skytrack.tracker.kernels import (
     write_hit,
 )
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
+from skytrack.tracker.window_kernels import matched_position_block
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _matched_position(xp, Pp, c, ndim, x_pos, P_pos):
-    """Moment-matched position ``x_pos`` and covariance block ``P_pos`` of predicted modes."""
+def _matched_position(xp, P_pos, c, ndim, x_pos, P_match):
+    """Moment-matched position ``x_pos`` and covariance ``P_match`` of predicted modes ``xp[M, n]``
+    with position blocks ``P_pos[M, ndim, ndim]``."""
     M = xp.shape[0]
     for a in range(ndim):
         acc = 0.0
@@ -52,16 +57,12 @@ def _matched_position(xp, Pp, c, ndim, x_pos, P_pos):
             acc += c[j] * xp[j, 2 * a]
         x_pos[a] = acc
     for a in range(ndim):
-        for b in range(ndim):
+        for b in range(a, ndim):
             acc = 0.0
             for j in range(M):
-                acc += c[j] * (Pp[j, 2 * a, 2 * b] + (xp[j, 2 * a] - x_pos[a]) * (xp[j, 2 * b] - x_pos[b]))
-            P_pos[a, b] = acc
-    for a in range(ndim):
-        for b in range(a + 1, ndim):
-            mean = 0.5 * (P_pos[a, b] + P_pos[b, a])
-            P_pos[a, b] = mean
-            P_pos[b, a] = mean
+                acc += c[j] * (P_pos[j, a, b] + (xp[j, 2 * a] - x_pos[a]) * (xp[j, 2 * b] - x_pos[b]))
+            P_match[a, b] = acc
+            P_match[b, a] = acc
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -86,13 +87,22 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
                    origin):
     """Gated pairs (indices into ``tracks``/``free``), their ``d^2``, the ``ln det`` that makes
     ``-(d^2 + ln det + m ln 2 pi) / 2`` the mixture log-likelihood, their measurements, their
-    predicted modes ``x``, ``P`` and weights ``c``, and the number of candidates searched."""
+    tracks' mixed modes ``x0``, ``P0`` and predicted weights ``c`` (per track, not per pair), and
+    the number of candidates searched.  Each track is mixed once, over ``Pi`` of the interval to
+    its reference time; each candidate's modes are predicted from the mixed ones to the plot's own
+    time (the reference's ``mixing_dt``).  Only each mode's mean and position block are predicted
+    here (all the gate and the likelihood use); the update predicts the chosen pairs in full."""
     n_tracks = len(tracks)
     M = x_all.shape[1]
     n = 2 * ndim
     scratch = mix_scratch(M, n)
+    G = scratch[2]
+    # every track mixed once, at its reference time; candidates are predicted from these
+    mixed_x = np.empty((n_tracks, M, n))
+    mixed_P = np.empty((n_tracks, M, n, n))
+    mixed_c = np.empty((n_tracks, M))
     xp = np.empty((M, n))
-    Pp = np.empty((M, n, n))
+    mode_blocks = np.empty((M, ndim, ndim))
     c = np.empty(M)
     x_pos = np.empty(ndim)
     P_pos = np.empty((ndim, ndim))
@@ -102,9 +112,13 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     margin = np.empty(n_tracks)
     for k in range(n_tracks):
         row = tracks[k]
-        mix_predict_row(x_all[row], P_all[row], mu_all[row], t_ref[k] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, xp, Pp, c, scratch)
-        _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
+        dt = t_ref[k] - t_all[row]
+        mix_row(x_all[row], P_all[row], mu_all[row], dt, sojourn, fixed, forced_mode, mixed_x[k], mixed_P[k],
+                mixed_c[k], scratch)
+        c = mixed_c[k]
+        for jm in range(M):
+            predict_mode_position(modes[jm], mixed_x[k, jm], mixed_P[k, jm], dt, ndim, xp[jm], mode_blocks[jm], G)
+        _matched_position(xp, mode_blocks, c, ndim, x_pos, P_pos)
         speed2 = 0.0
         for a in range(ndim):
             ref_pos[k, a] = x_pos[a]
@@ -124,14 +138,9 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     logdet_out = np.empty(count)
     kept_t = np.empty(count, np.int64)
     kept_p = np.empty(count, np.int64)
-    # each kept pair's predicted modes, so that the update does not predict them again
-    kept_x = np.empty((count, M, n))
-    kept_P = np.empty((count, M, n, n))
-    kept_c = np.empty((count, M))
     L = np.zeros((ndim, ndim))
     w = np.empty(ndim)
     mode_pos = np.empty(ndim)
-    mode_cov = np.empty((ndim, ndim))
     log_terms = np.empty(M)
     m = 0
     for cand in range(count):
@@ -139,11 +148,10 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         j = out_p[cand]
         row = tracks[k]
         col = free[j]
-        mix_predict_row(x_all[row], P_all[row], mu_all[row], plot_time_all[col] - t_all[row], modes, sojourn, fixed,
-                        forced_mode, kept_x[m], kept_P[m], kept_c[m], scratch)
-        xp = kept_x[m]
-        Pp = kept_P[m]
-        c = kept_c[m]
+        dt = plot_time_all[col] - t_all[row]
+        c = mixed_c[k]
+        for jm in range(M):
+            predict_mode_position(modes[jm], mixed_x[k, jm], mixed_P[k, jm], dt, ndim, xp[jm], mode_blocks[jm], G)
         if replace_height and not np.isfinite(plot_mode_c_all[col]) and np.isfinite(alt_all[row]):
             place_2d(plot_range_all[col], plot_azimuth_all[col], alt_all[row], sensor_alt, earth, var_r, var_az,
                      var_h, rot, origin, pair_pos[m], pair_cov[m])
@@ -152,7 +160,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
                 pair_pos[m, a] = plot_pos_all[col, a]
                 for b in range(3):
                     pair_cov[m, a, b] = plot_cov_all[col, a, b]
-        _matched_position(xp, Pp, c, ndim, x_pos, P_pos)
+        _matched_position(xp, mode_blocks, c, ndim, x_pos, P_pos)
         if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue
         total, _ = _solve_d2(L, pair_pos[m], x_pos, ndim, w)
@@ -165,9 +173,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
                 continue
             for a in range(ndim):
                 mode_pos[a] = xp[jm, 2 * a]
-                for b in range(ndim):
-                    mode_cov[a, b] = Pp[jm, 2 * a, 2 * b]
-            if not _innovation_factor(mode_cov, pair_cov[m], ndim, L):
+            if not _innovation_factor(mode_blocks[jm], pair_cov[m], ndim, L):
                 log_terms[jm] = -np.inf
                 continue
             d2_j, logdet_j = _solve_d2(L, pair_pos[m], mode_pos, ndim, w)
@@ -184,16 +190,16 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         kept_t[m] = k
         kept_p[m] = j
         m += 1
-    return (kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], kept_x[:m], kept_P[:m],
-            kept_c[:m], count)
+    return (kept_t[:m], kept_p[:m], d2_out[:m], logdet_out[:m], pair_pos[:m], pair_cov[:m], mixed_x, mixed_P, mixed_c,
+            count)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c, x_all, P_all, mu_all, ndim,
+def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c, modes, x_all, P_all, mu_all, ndim,
                      two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, plot_time,
                      plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain, score, score_max):
-    """Mode-matched updates (Joseph form) of the chosen pairs from their predicted modes
-    (``pair_x``, ``pair_P``, weights ``pair_c``, as the gate predicted them), mode probabilities,
+    """Mode-matched updates (Joseph form) of the chosen pairs: each mode predicted in full from the
+    pair's mixed modes (``pair_x``, ``pair_P``, weights ``pair_c``, as the gate mixed them), mode probabilities,
     the two-point start of a tentative track's second plot, and the bank's columns, in place."""
     M = x_all.shape[1]
     n = 2 * ndim
@@ -209,31 +215,37 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
     log_post = np.empty(M)
     first_pos = np.empty(m)
     first_cov = np.empty((m, m))
+    position_index = np.arange(0, n, 2)
+    xp = np.empty(n)
+    Pp = np.empty((n, n))
+    G = np.empty((n, n))
+    column = np.empty(n)
+    result = np.empty(n)
     for pair in range(len(rows)):
         k = rows[pair]
         j = plot_rows[pair]
+        dt = plot_time[j] - t[k]
         # the stored estimate before the update (the first point of a two-point start)
-        _matched_position(x_all[k], P_all[k], mu_all[k], ndim, first_pos, first_cov)
-        xp = pair_x[pair]
-        Pp = pair_P[pair]
+        matched_position_block(x_all[k], P_all[k], mu_all[k], position_index, first_pos, first_cov)
         c = pair_c[pair]
         best = -np.inf
         for jm in range(M):
+            predict_mode(modes[jm], pair_x[pair, jm], pair_P[pair, jm], dt, ndim, xp, Pp, G, column, result)
             for a in range(m):
-                mode_pos[a] = xp[jm, 2 * a]
+                mode_pos[a] = xp[2 * a]
                 for b in range(m):
-                    mode_cov[a, b] = Pp[jm, 2 * a, 2 * b]
+                    mode_cov[a, b] = Pp[2 * a, 2 * b]
             if not _innovation_factor(mode_cov, pair_cov[pair], m, L):
                 log_post[jm] = -np.inf
                 for a in range(n):
-                    x_all[k, jm, a] = xp[jm, a]
+                    x_all[k, jm, a] = xp[a]
                     for b in range(n):
-                        P_all[k, jm, a, b] = Pp[jm, a, b]
+                        P_all[k, jm, a, b] = Pp[a, b]
                 continue
             d2_j, logdet_j = _solve_d2(L, pair_pos[pair], mode_pos, m, w)
             log_post[jm] = (np.log(c[jm]) if c[jm] > 0.0 else -np.inf) - 0.5 * (d2_j + logdet_j + m * LOG_2PI)
             best = max(best, log_post[jm])
-            joseph_position_update(xp[jm], Pp[jm], pair_pos[pair], pair_cov[pair], L, m, K, y, AP, KR, x_all[k, jm],
+            joseph_position_update(xp, Pp, pair_pos[pair], pair_cov[pair], L, m, K, y, AP, KR, x_all[k, jm],
                                    P_all[k, jm])
         total = 0.0
         for jm in range(M):
@@ -267,7 +279,7 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
               n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
               clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
-    kt, kp, d2, logdet, position, covariance, pair_x, pair_P, pair_c, candidates = gate_stage_imm(
+    kt, kp, d2, logdet, position, covariance, mixed_x, mixed_P, mixed_c, candidates = gate_stage_imm(
         tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref, plot_time,
         plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
@@ -276,7 +288,9 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
     pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
-    update_write_imm(rows, plot_rows, position[pick], covariance[pick], pair_x[pick], pair_P[pick], pair_c[pick], x_all,
+    track_of_pair = kt[pick]
+    update_write_imm(rows, plot_rows, position[pick], covariance[pick], mixed_x[track_of_pair], mixed_P[track_of_pair],
+                     mixed_c[track_of_pair], modes, x_all,
                      P_all, mu_all, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
                      icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,
                      score_max)

@@ -8,7 +8,8 @@ A window of one sensor is processed as a composition of parts:
    the manoeuvre gate (filters that support it, psi = 1); tentative tracks on the plots left —
    each stage: the filter predicts the tracks to their reference time, the gate's candidate search
    (k-d tree reference or compiled grid) bounds the pairs, the filter predicts each
-   pair to its plot's own time (spec 000 Theorem 2 / R7) and innovates it, the scorer gates and
+   pair to its plot's own time (spec 000 Theorem 2 / R7; an IMM mixes over the interval to the
+   reference time, ``context["mixing_dt"]``, once per scan as in the standard cycle) and innovates it, the scorer gates and
    costs the pairs, the assigner chooses, and the filter updates the chosen pairs;
 4. expected tracks without a plot record a miss (no update: spec 000 R4);
 5. plots left over start tentative tracks; M-of-N confirmation and deletion.
@@ -288,7 +289,9 @@ class ScanProcessor(CompiledStages):
         pj = free[pj_local]
         self.stats["candidate_pairs"] += len(ti)
         # --- each candidate predicted to its plot's own time, innovated and scored
-        predicted = self.filter.predict(bank.state.take(ti), plots.time[pj] - bank.t[ti], context)
+        # an IMM mixes each track once, over the interval to its reference time (mixing_dt)
+        mixing = {**(context or {}), "mixing_dt": t_ref[ti_local] - bank.t[ti]}
+        predicted = self.filter.predict(bank.state.take(ti), plots.time[pj] - bank.t[ti], mixing)
         position, covariance = self._pair_measurements(s, ti, pj, plots, converted)
         model = self.measurements[s]
         z, measurement_context = self._measurement(s, model, pj, plots, position, covariance)

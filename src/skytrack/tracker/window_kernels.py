@@ -91,9 +91,10 @@ def _horizon(sensor_alt, target_alt):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _matched_position_eig(x, P, mu, pos_index, mean, block):
-    """Largest eigenvalue of the position block of one row's moment-matched covariance
-    (the arithmetic of :func:`skytrack.filters.imm_kernels.moment_match_rows`; exact for one mode)."""
+def matched_position_block(x, P, mu, pos_index, mean, block):
+    """The position mean and covariance block of one row's moment-matched mixture ``x[M, n]``,
+    ``P[M, n, n]``, ``mu[M]`` (the arithmetic of :func:`skytrack.filters.imm_kernels.moment_match_rows`;
+    exact for one mode of probability 1)."""
     M = x.shape[0]
     dim = len(pos_index)
     for a in range(dim):
@@ -110,7 +111,6 @@ def _matched_position_eig(x, P, mu, pos_index, mean, block):
                 acc += mu[j] * (P[j, pa, pb] + (x[j, pa] - mean[a]) * (x[j, pb] - mean[b]))
             block[a, b] = acc
             block[b, a] = acc
-    return _max_eig_sym(block, dim)
 
 
 @njit(cache=True, nogil=True)
@@ -170,7 +170,8 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                     keep[k] = False
                     hopeless += 1
                 continue
-        largest = _matched_position_eig(x[k], P[k], mu[k], pos_index, mean, block)
+        matched_position_block(x[k], P[k], mu[k], pos_index, mean, block)
+        largest = _max_eig_sym(block, dim)
         faded = (score_max[k] - score[k] >= delete_drop) if score_logic else (n_misses[k] >= delete_misses)
         if faded or np.sqrt(max(largest, 0.0)) > max_sigma:
             keep[k] = False
