@@ -359,8 +359,8 @@ def test_sojourn_transition_rejects_one_mode():
 ])
 def test_compiled_imm_predict_equals_the_numpy_reference(ndim, options):
     """The compiled mixing and CV/CT prediction (imm_kernels) of the tracker's continuous-noise
-    sets equals the numpy reference to 1e-12 relative, backwards steps and the manoeuvre gate's
-    forced mode included."""
+    sets equals the numpy reference to 1e-12 relative, backwards steps, long coasts, the manoeuvre
+    gate's forced mode and a separate mixing interval included."""
     fast = build_filter("imm", constant_velocity(ndim, 0.5), compiled=True, **options)
     reference = build_filter("imm", constant_velocity(ndim, 0.5), compiled=False, **options)
     assert fast._modes is not None and reference._modes is None
@@ -370,8 +370,10 @@ def test_compiled_imm_predict_equals_the_numpy_reference(ndim, options):
     state = fast.initiate(rng.normal(0.0, 1e4, (rows, n)), A @ np.swapaxes(A, 1, 2) * 100.0 + np.eye(n))
     state.x += rng.normal(0.0, 50.0, state.x.shape)
     state.mu = rng.dirichlet(np.ones(M), rows)
-    dt = rng.uniform(-12.0, 12.0, rows)
-    for context in (None, {"manoeuvre": True}):
+    # long coasts included: |w dt| beyond pi, where sin|w dt| and |sin w dt| differ
+    dt = np.concatenate([rng.uniform(-12.0, 12.0, rows - 3), [150.0, -170.0, 400.0]])
+    mixing = {"mixing_dt": dt + rng.uniform(-2.0, 2.0, rows)}
+    for context in (None, {"manoeuvre": True}, mixing):
         a, b = fast.predict(state, dt, context), reference.predict(state, dt, context)
         assert_rel(a.x, b.x, 1e-12)
         assert_rel(a.P, b.P, 1e-12)
@@ -379,6 +381,53 @@ def test_compiled_imm_predict_equals_the_numpy_reference(ndim, options):
     if fast.manoeuvre_mode is not None:
         forced = fast.predict(state, dt, {"manoeuvre": True})
         np.testing.assert_array_equal(forced.mu[:, fast.manoeuvre_mode], 1.0)
+
+
+def test_mixing_interval_changes_only_the_mixing():
+    """``mixing_dt`` equal to ``dt`` is the plain prediction; with the identity transition matrix
+    (no mode switching, so Pi does not depend on the interval) it changes nothing either; with
+    sojourn times it changes the predicted probabilities as Pi(mixing_dt) says."""
+    motion = constant_velocity(2, 0.5)
+    for compiled in (True, False):
+        imm = build_filter("imm", motion, compiled=compiled, noise="continuous", turn_rate_deg_s=3.0)
+        rng = np.random.default_rng(5)
+        state = imm.initiate(rng.normal(0.0, 1e4, (4, 4)), np.tile(np.eye(4) * 100.0, (4, 1, 1)))
+        state.mu = rng.dirichlet(np.ones(3), 4)
+        dt = np.array([4.0, 4.5, 3.9, 12.0])
+        plain = imm.predict(state, dt)
+        same = imm.predict(state, dt, {"mixing_dt": dt})
+        np.testing.assert_array_equal(same.P, plain.P)
+        np.testing.assert_array_equal(same.mu, plain.mu)
+        other = imm.predict(state, dt, {"mixing_dt": dt + 3.0})
+        expected_c = np.einsum("kij,ki->kj", imm.transition_matrix(dt + 3.0), state.mu)
+        np.testing.assert_allclose(other.mu, expected_c / expected_c.sum(axis=1, keepdims=True), rtol=1e-12)
+        identity = build_filter("imm", motion, compiled=compiled, noise="continuous", turn_rate_deg_s=3.0,
+                                transition_matrix=np.eye(3))
+        a, b = identity.predict(state, dt), identity.predict(state, dt, {"mixing_dt": dt + 3.0})
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.P, b.P)
+
+
+@pytest.mark.parametrize("ndim", [2, 3])
+def test_position_block_prediction_equals_the_full_one(ndim):
+    """predict_mode_position (the tracker's gate) gives the full prediction's mean and position block."""
+    from skytrack.filters.imm_kernels import predict_mode, predict_mode_position
+    imm = build_filter("imm", constant_velocity(ndim, 0.5), compiled=True, model_set="cv-ct-noisy",
+                       noise="continuous", sojourn_s=(600.0, 30.0, 30.0, 10.0))
+    rng = np.random.default_rng(ndim + 10)
+    n = 2 * ndim
+    A = rng.normal(size=(n, n))
+    x0, P0 = rng.normal(0.0, 1e3, n), A @ A.T * 50.0 + np.eye(n)
+    positions = np.arange(0, n, 2)
+    for mode in imm._modes:
+        for dt in (-7.0, 0.0, 4.2, 260.0):
+            x_full, P_full = np.empty(n), np.empty((n, n))
+            predict_mode(mode, x0, P0, dt, ndim, x_full, P_full, np.empty((n, n)), np.empty(n), np.empty(n))
+            x_pos, P_pos = np.empty(n), np.empty((ndim, ndim))
+            predict_mode_position(mode, x0, P0, dt, ndim, x_pos, P_pos, np.empty((n, n)))
+            block = P_full[np.ix_(positions, positions)]
+            np.testing.assert_array_equal(x_pos, x_full)
+            assert np.max(np.abs(P_pos - block)) <= 1e-14 * np.max(np.abs(block))
 
 
 def test_compiled_moment_matching_equals_the_numpy_reference():
