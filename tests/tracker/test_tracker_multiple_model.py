@@ -126,3 +126,20 @@ def test_compiled_imm_stage_equals_the_composed_reference(crossing):
     np.testing.assert_allclose(probs, probs_ref, rtol=0, atol=1.5e-4)  # 4-decimal text
     assert fast_tracker.scan.stats["manoeuvre_gate_hits"] == reference_tracker.scan.stats["manoeuvre_gate_hits"]
     np.testing.assert_allclose(fast_tracker.bank.state.mu, reference_tracker.bank.state.mu, rtol=0, atol=1e-6)
+
+
+def test_model_probs_text_is_json_with_four_decimals(monkeypatch):
+    """Fixed-width text: rounding to 4 decimals, 1 and 0 written out, names JSON-escaped, and the
+    same text when the rows are split into several pyarrow chunks."""
+    from skytrack.tracker import output
+
+    names = ("CV", 'say "turn"', "Kurve δ")
+    probabilities = np.array([[1.0, 0.0, 0.0], [0.12344, 0.87656, 0.0], [0.99996, 0.00004, 0.0]])
+    text = output.model_probs_text(probabilities, names).to_pylist()
+    assert text[0] == '{"CV": 1.0000, "say \\"turn\\"": 0.0000, "Kurve \\u03b4": 0.0000}'
+    assert json.loads(text[1]) == {"CV": 0.1234, 'say "turn"': 0.8766, "Kurve δ": 0.0}
+    assert json.loads(text[2])["CV"] == 1.0
+    monkeypatch.setattr(output, "MAX_STRING_CHUNK_BYTES", 2 * len(text[0]))
+    chunked = output.model_probs_text(probabilities, names)
+    assert chunked.num_chunks == 2 and chunked.to_pylist() == text
+    assert len(output.model_probs_text(np.zeros((0, 3)), names)) == 0

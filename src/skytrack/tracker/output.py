@@ -110,23 +110,44 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
     return record
 
 
+#: pyarrow's string arrays have 32-bit offsets: longer text is split into chunks
+MAX_STRING_CHUNK_BYTES = 2**31 - 1
+
+
 def model_probs_text(probabilities: np.ndarray, names: tuple[str, ...]):
     """The ``model_probs`` column: one JSON object per row, model name -> probability with 4
-    decimals (``{"CV": 0.9123, "CT +3 deg/s": 0.0500}``), built by pyarrow's string kernels."""
+    decimals (``{"CV": 0.9123, "CT +3 deg/s": 0.0500}``).
+
+    Every probability is written ``d.dddd``, so every row has the same length: the digits are
+    placed into one byte buffer with numpy and the buffer becomes a pyarrow string array as it is
+    (chunks below pyarrow's 2 GiB offset limit)."""
     import json
 
     import pyarrow as pa
-    import pyarrow.compute as pc
 
-    parts = []
+    rows = len(probabilities)
+    ticks = np.rint(np.clip(probabilities, 0.0, 1.0) * 1e4).astype(np.int64)
+    template, value_at = "", []
     for j, name in enumerate(names):
-        ticks = np.rint(np.clip(probabilities[:, j], 0.0, 1.0) * 1e4).astype(np.int64)
-        whole = pc.cast(pa.array(ticks // 10000), pa.string())
-        fraction = pc.utf8_lpad(pc.cast(pa.array(ticks % 10000), pa.string()), width=4, padding="0")
-        key = ("{" if j == 0 else ", ") + json.dumps(str(name)) + ": "
-        parts += [pa.scalar(key), whole, pa.scalar("."), fraction]
-    parts.append(pa.scalar("}"))
-    return pc.binary_join_element_wise(*parts, "")
+        template += ("{" if j == 0 else ", ") + json.dumps(str(name)) + ": "
+        value_at.append(len(template))
+        template += "0.0000"
+    template += "}"
+    width = len(template)
+    text = np.tile(np.frombuffer(template.encode("ascii"), np.uint8), (rows, 1))
+    zero = ord("0")
+    for j, at in enumerate(value_at):
+        text[:, at] = zero + ticks[:, j] // 10000
+        for place, power in enumerate((1000, 100, 10, 1)):
+            text[:, at + 2 + place] = zero + ticks[:, j] // power % 10
+    per_chunk = max(1, MAX_STRING_CHUNK_BYTES // width)
+    chunks = []
+    for first in range(0, max(rows, 1), per_chunk):
+        count = min(per_chunk, rows - first)
+        offsets = np.arange(count + 1, dtype=np.int32) * width
+        data = np.ascontiguousarray(text[first:first + count]).reshape(-1)
+        chunks.append(pa.StringArray.from_buffers(count, pa.py_buffer(offsets), pa.py_buffer(data)))
+    return chunks[0] if len(chunks) == 1 else pa.chunked_array(chunks, pa.string())
 
 
 def _status_text(coasting: np.ndarray):
