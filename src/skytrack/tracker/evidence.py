@@ -260,7 +260,7 @@ class TrackScoring:
     def observe(self, s: int, range_m: np.ndarray, azimuth: np.ndarray, mode3a: np.ndarray, mode_c: np.ndarray,
                 plot_stage: np.ndarray, scans: float) -> None:
         """Learn from a window's plots (numpy reference of the learning in
-        :func:`~skytrack.tracker.window_kernels.initiate_manage_cv`): ``plot_stage`` 0/1 = taken by
+        :func:`~skytrack.tracker.window_kernels.initiate_manage`): ``plot_stage`` 0/1 = taken by
         a confirmed track (a target's plot), 2 = by a tentative track, -1 = by none (false, or a new
         aircraft's first plot)."""
         counts = self.code_counts[s]
