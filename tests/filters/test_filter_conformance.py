@@ -366,26 +366,8 @@ def test_recorder_only_observes(kind, motion, compiled):
         assert all(len(v) == len(rows) for v in values.values())
 
 
-#: Kinds whose NEES on their matched model is known to fail (issue 7; strict: the mark must go when
-#: they pass).  The structured Sage-Husa q-hat (spec 004 §3.3 F) is unbiased once the NIS gate's
-#: truncation is corrected, but one scan's Frobenius projection of M_Q has a standard deviation of
-#: ~45 q here (sigma_r 30-80 m, T = 2 s; ~150 q on singer3) and b = 0.97 averages ~66 of them, so
-#: q-hat wanders over orders of magnitude (clipped at q_lo) and the plug-in covariance is
-#: overconfident: NEES 5.3 / 8.1 / 21.3 for n = 4 / 6 / 9 (87 for adaptive + IE, whose acceleration
-#: variance is q-hat itself).  The measurements of these 50 scans cannot do much better: their
-#: Fisher information bounds the relative standard deviation of any unbiased q estimate at ~1.5
-#: (cv) and ~0.8 (singer) over the 40 adaptation scans.  With sigma_r 3-8 m it is worse (18 / 26 /
-#: 95): r-hat is then poorly determined as well.
-NEES_OPEN = {
-    "adaptive-input-estimation": "plug-in q-hat too noisy over 40 adaptation scans (NEES 87 for n = 9)",
-    "kalman-adaptive": "plug-in q-hat too noisy over 40 adaptation scans (NEES ~1.3-2.4 n)",
-}
-
-
 def nees_cases():
-    cases = conformance_cases(lambda f: f.capabilities.has_covariance and not is_mixture(f))
-    return [pytest.param(*c.values, id=c.id, marks=pytest.mark.xfail(strict=True, reason=NEES_OPEN[c.values[0]]))
-            if c.values[0] in NEES_OPEN else c for c in cases]
+    return conformance_cases(lambda f: f.capabilities.has_covariance and not is_mixture(f))
 
 
 @pytest.mark.parametrize("kind,motion,compiled", nees_cases())

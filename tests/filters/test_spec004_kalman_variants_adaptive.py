@@ -2,7 +2,8 @@
 with d forced to 0.5, and the d_k sequence for b = 0.97; 1e-9), warm-up, NIS gate, limits, the
 one-step formulas of the sage_husa_full and covariance_matching variants, several predictions
 before one update, the R-hat / q-hat histories of study E6 and its R-hat assertion, bad
-configuration.  "rel" means ``max|a - b| <= rtol * max|b|``.  Monte Carlo runs draw from
+configuration (the information weighting: test_adaptive_information_weighting.py).  "rel" means
+``max|a - b| <= rtol * max|b|``.  Monte Carlo runs draw from
 ``np.random.default_rng(np.random.SeedSequence(seed).spawn(runs)[r])``.
 """
 
@@ -52,7 +53,7 @@ def cv_rows(filt, rows, ndim=3, seed=0):
 def tv16_state():
     return StructuredAdaptiveState(np.array([[100.0, 10.0]]), np.array([[[300.0, 40.0], [40.0, 20.0]]]),
                                    np.array([[[400.0]]]), np.array([[[400.0]]]), np.zeros((1, 2, 2)),
-                                   np.array([10]), np.array([3]), np.array([4.0]))
+                                   np.array([10]), np.array([3]), np.array([4.0]), np.ones((1, 1)), np.ones(1))
 
 
 def test_tv16_structured_one_step_with_d_forced_to_half():
@@ -113,8 +114,8 @@ def test_tv16_fading_weights_for_b_097():
     np.testing.assert_allclose(fading_weight(0.97, np.arange(5)),
                                [1.0, 0.507614213198, 0.343536363324, 0.261535480034, 0.212365363625], atol=1e-9)
     assert abs(fading_weight(0.97, 10_000) - 0.03) < 1e-12
-    # the filter applies them on successive adaptation scans (warm-up 0, gate off)
-    filt = AdaptiveKalmanFilter(constant_velocity(2, 1.0), warmup=0, gate=False)
+    # the filter's fading rule applies them on successive adaptation scans (warm-up 0, gate off)
+    filt = AdaptiveKalmanFilter(constant_velocity(2, 1.0), warmup=0, gate=False, weighting="fading")
     filt.recorder = ListRecorder()
     state = cv_rows(filt, 2, ndim=2)
     rng = np.random.default_rng(3)
@@ -131,9 +132,10 @@ def test_tv16_fading_weights_for_b_097():
     (np.inf, np.full(5, 0.03)),  # the prior as an infinite past: exponential smoothing from q0, R0
 ])
 def test_prior_scans_start_the_adaptation_count(prior_scans, expected):
-    """d = (1 - b) / (1 - b^(k' + prior_scans + 1)) on successive adaptation scans (gate off, warm-up 2)."""
+    """Fading rule: d = (1 - b) / (1 - b^(k' + prior_scans + 1)) on successive adaptation scans (gate
+    off, warm-up 2)."""
     options = {} if prior_scans is None else {"prior_scans": prior_scans}
-    filt = AdaptiveKalmanFilter(constant_velocity(2, 1.0), warmup=2, gate=False, **options)
+    filt = AdaptiveKalmanFilter(constant_velocity(2, 1.0), warmup=2, gate=False, weighting="fading", **options)
     filt.recorder = ListRecorder()
     state = cv_rows(filt, 2, ndim=2)
     rng = np.random.default_rng(8)
@@ -205,8 +207,11 @@ def test_defaults_are_spec_004_section_6():
     filt = build_filter("kalman-adaptive", constant_velocity(3, 1.0))
     assert (filt.variant, filt.b, filt.warmup, filt.gate, filt.gate_probability) == ("structured", 0.97, 10, True, 0.99)
     assert (filt.r_lo, filt.r_hi, filt.q_lo, filt.q_hi, filt.window) == (0.1, 10.0, 0.01, 2500.0, 20)
-    assert filt.prior_scans == 10.0 and filt.gate_correction  # the prior weighs as the warm-up's scans
-    assert build_filter("kalman-adaptive", constant_velocity(3, 1.0), variant="sage_husa_full").gate is False
+    assert (filt.weighting, filt.r_prior_sd, filt.q_prior_sd, filt.gate_correction) == ("information", 1.0, 1.0, True)
+    fading = build_filter("kalman-adaptive", constant_velocity(3, 1.0), weighting="fading")
+    assert fading.prior_scans == 10.0 and fading.gate_correction  # the prior weighs as the warm-up's scans
+    full = build_filter("kalman-adaptive", constant_velocity(3, 1.0), variant="sage_husa_full")
+    assert full.gate is False and full.weighting == "fading"
     assert not filt.capabilities.gain_depends_on_r
 
 
@@ -216,7 +221,9 @@ def test_defaults_are_spec_004_section_6():
     ({"q_lo": 0.0}, "q_lo"), ({"warmup": -1}, "warmup"), ({"window": 0}, "window"),
     ({"fixed_weight": 0.0}, "fixed_weight"), ({"gate_probability": 1.0}, "gate_probability"),
     ({"q0": -1.0}, "q0"), ({"r_hat0": 4.0}, "r_hat0"), ({"prior_scans": -1.0}, "prior_scans"),
-    ({"prior_scans": "10"}, "prior_scans"),
+    ({"prior_scans": "10", "weighting": "fading"}, "prior_scans"), ({"prior_scans": 0}, "prior_scans belongs"),
+    ({"weighting": "fisher"}, "weighting must be"), ({"variant": "sage_husa_full", "weighting": "information"}, "structured"),
+    ({"r_prior_sd": 0.0}, "r_prior_sd"), ({"q_prior_sd": -1.0}, "q_prior_sd"),
 ])
 def test_bad_configuration_names_the_option(options, match):
     with pytest.raises(ValueError, match=match):
@@ -283,10 +290,11 @@ def test_nis_gate_keeps_manoeuvre_innovations_out_of_the_estimates(gate):
 
 
 def test_limits_clip_r_and_q():
-    """First adaptation of the literal rule (prior_scans = 0: d = 1), gate off: a huge innovation puts r-hat
-    at r_hi R_nom and q-hat at q_hi; a zero innovation puts r-hat at r_lo R_nom and q-hat at q_lo."""
+    """First adaptation of the literal rule (weighting "fading", prior_scans = 0: d = 1), gate off: a huge
+    innovation puts r-hat at r_hi R_nom and q-hat at q_hi; a zero innovation puts r-hat at r_lo R_nom and
+    q-hat at q_lo."""
     filt = AdaptiveKalmanFilter(constant_velocity(3, 1.0), warmup=1, gate=False, r_lo=0.2, r_hi=5.0, q_lo=0.05, q_hi=300.0,
-                                prior_scans=0)
+                                weighting="fading", prior_scans=0)
     R = np.broadcast_to(np.diag([900.0, 1600.0, 2500.0]), (2, 3, 3))
     state = step(filt, cv_rows(filt, 2), np.zeros((2, 3)), R)[2]
     state.x[:, 0::2] = 0.0
@@ -387,13 +395,15 @@ def test_two_predictions_before_an_update_equal_one():
     assert not np.allclose(a.q_hat, state.q_hat)
 
 
-def test_e6_r_hat_recovers_from_four_times_r_and_histories_are_recorded():
+@pytest.mark.parametrize("weighting", ["fading", "information"])
+def test_e6_r_hat_recovers_from_four_times_r_and_histories_are_recorded(weighting):
     """Study E6 set-up on a straight CV flight: R-hat_0 = 4 R_true, q-hat_0 = 25, 100 runs, 60 scans.  The
     recorder holds the R-hat and q-hat histories (60 x runs); after the warm-up the mean over runs of
-    R-hat_ii / R_true,ii lies in E6's [0.6, 1.4] at scan 60; it is exactly 4 during the warm-up."""
+    R-hat_ii / R_true,ii lies in E6's [0.6, 1.4] at scan 60; it is exactly 4 during the warm-up.  Both
+    rules: the study's (fading, the spec's d_k) and the default (information)."""
     runs, steps = 100, 60
     motion = constant_velocity(3, 1.0)
-    filt = AdaptiveKalmanFilter(motion, r0_scale=4.0, q0=25.0)
+    filt = AdaptiveKalmanFilter(motion, r0_scale=4.0, q0=25.0, weighting=weighting)
     filt.recorder = ListRecorder()
     rngs = gens(2024, runs)
     R = np.broadcast_to(np.diag([50.0, 60.0, 40.0]) ** 2, (runs, 3, 3)).copy()

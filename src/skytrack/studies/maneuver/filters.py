@@ -180,7 +180,9 @@ def _spec(label, kind, motion, description, **extra) -> FilterSpec:
 SINGER = {"model": "singer", "tau": 10.0, "sigma_m": 30.0}
 CV = {"model": "dwna", "sigma_w": 1.0}
 ORDER3 = {"model": "dwpa", "sigma_w": 8.0}  # families that use only the axes of their motion (3 states per axis)
-ADAPTIVE = {"variant": "structured", "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0}
+#: §6's adaptive filter is §3.3 F's: the spec's weights d_k (weighting "fading"), not the filter's
+#: default information weighting, whose prior around q0 = 25 would mostly keep q-hat there
+ADAPTIVE = {"variant": "structured", "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0, "weighting": "fading"}
 
 #: §6 default filter parameters, one entry per row of the table (PCG for each N, IMM for each set)
 CATALOG: dict[str, FilterSpec] = {s.label: s for s in (
@@ -209,7 +211,8 @@ CATALOG: dict[str, FilterSpec] = {s.label: s for s in (
     _spec("ie", "input-estimation", ORDER3, "input estimation, CV sigma_w = 1, N_w = 20, P_fa = 0.01, Bonferroni",
           options={"sigma_w": 1.0, "window": 20, "p_fa": 0.01, "bonferroni": True}),
     _spec("adaptive-ie", "adaptive-input-estimation", ORDER3, "structured adaptive KF + IE (N_w = 20, P_fa = 0.01)",
-          options={"window": 20, "p_fa": 0.01, "bonferroni": True, "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0}),
+          options={"window": 20, "p_fa": 0.01, "bonferroni": True, "b": 0.97, "warmup": 10, "r0_scale": 4.0, "q0": 25.0,
+                   "weighting": "fading"}),
     _spec("berg-full", "berg-full", ORDER3, "Berg full 9x9, (tau, sigma) = (60, 3), (15, 40), (30, 10), mean jerk",
           options={"tangential": (60.0, 3.0), "normal": (15.0, 40.0), "binormal": (30.0, 10.0), "mean_jerk": True}),
     _spec("berg-frame", "berg-frame", ORDER3, "Berg target-frame blocks, channels as berg-full, mean jerk",
