@@ -225,8 +225,10 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
         k = rows[pair]
         j = plot_rows[pair]
         dt = plot_time[j] - t[k]
-        # the stored estimate before the update (the first point of a two-point start)
-        matched_position_block(x_all[k], P_all[k], mu_all[k], position_index, first_pos, first_cov)
+        second_plot = two_point and n_updates[k] == 1 and status[k] == 0
+        if second_plot:
+            # the stored estimate before the update: the first point of the two-point start
+            matched_position_block(x_all[k], P_all[k], mu_all[k], position_index, first_pos, first_cov)
         c = pair_c[pair]
         best = -np.inf
         for jm in range(M):
@@ -252,7 +254,7 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
             total += np.exp(log_post[jm] - best)
         for jm in range(M):
             mu_all[k, jm] = np.exp(log_post[jm] - best) / total
-        if two_point and n_updates[k] == 1 and status[k] == 0:
+        if second_plot:
             dt = max(plot_time[j] - t[k], 1e-3)
             for jm in range(M):
                 for i in range(n):
