@@ -20,8 +20,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import gammaincinv, gammaln
+from scipy.special import gammaln
 
+from skytrack.core.chi2 import chi2_quantile
 from skytrack.filters.ekf import mahalanobis
 
 DEFAULT_GATE_PROBABILITY = 0.99
@@ -53,10 +54,7 @@ def gate_threshold(m, p_gate: float = DEFAULT_GATE_PROBABILITY):
     an array of the same shape.
     """
     dims = _check_dimension(m)
-    # chi2_m^-1(p) = 2 P^-1(m / 2, p) (P the regularised lower incomplete gamma function): what
-    # scipy.stats.chi2.ppf computes, without importing scipy.stats (0.5 s at start-up)
-    g = 2.0 * gammaincinv(0.5 * dims, _check_probability(p_gate))
-    return float(g) if np.ndim(g) == 0 else g
+    return chi2_quantile(_check_probability(p_gate), dims)
 
 
 def _check_threshold(g) -> np.ndarray:

@@ -121,8 +121,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
+from skytrack.core.chi2 import chi2_quantile, chi2_cdf
 from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
 from skytrack.filters.kalman import KalmanFilter
@@ -146,16 +146,16 @@ def gated_second_moment(probability: float, m) -> np.ndarray:
     ``factor = F_{chi2_{m+2}}(c) / probability`` (0.9535 for m = 2, 0.9626 for m = 3 at 0.99).
     """
     m = np.asarray(m, dtype=float)
-    c = stats.chi2.ppf(probability, m)
-    return stats.chi2.cdf(c, m + 2.0) / probability
+    c = chi2_quantile(probability, m)
+    return chi2_cdf(c, m + 2.0) / probability
 
 
 def gated_fourth_moment(probability: float, m) -> np.ndarray:
     """``E[eps^2 | eps <= c] / (m (m + 2))`` for ``eps ~ chi2_m``, ``c = chi2_m^-1(probability)``:
     ``F_{chi2_{m+4}}(c) / probability`` (``eps^2 f_m = m (m + 2) f_{m+4}``); 1 without a gate."""
     m = np.asarray(m, dtype=float)
-    c = stats.chi2.ppf(probability, m)
-    return stats.chi2.cdf(c, m + 4.0) / probability
+    c = chi2_quantile(probability, m)
+    return chi2_cdf(c, m + 4.0) / probability
 
 
 def quadratic_sample_variance(trace: np.ndarray, trace_square: np.ndarray, scale: np.ndarray, g2: np.ndarray,
@@ -420,7 +420,7 @@ class AdaptiveKalmanFilter(BatchFilter):
         # radial moments of the whitened innovations the estimates see (relative to the Gaussian's)
         g2 = g4 = np.ones(rows)
         if self.gate:
-            adapt &= innovation.d2 <= stats.chi2.ppf(self.gate_probability, m)
+            adapt &= innovation.d2 <= chi2_quantile(self.gate_probability, m)
             g2 = gated_second_moment(self.gate_probability, m)
             if informed:
                 g4 = gated_fourth_moment(self.gate_probability, m)

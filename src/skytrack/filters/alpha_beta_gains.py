@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg as sla
-from scipy import optimize, stats
+from scipy import optimize
 
+from skytrack.core.chi2 import chi2_quantile
 from skytrack.models.polynomial import PolynomialAxis
 
 GAIN_RULES = ("fixed", "benedict-bordner", "kalata", "critically-damped")
@@ -392,7 +393,7 @@ def detector_threshold(n_z: int, rho: float, p_fa: float) -> float:
     if not 0 < p_fa < 1:
         raise ValueError(f"detector: p_fa must be in (0, 1), got {p_fa}")
     c, d = detector_scale_dof(n_z, rho)
-    return float(c * stats.chi2.ppf(1.0 - p_fa, d))
+    return float(c * chi2_quantile(1.0 - p_fa, d))
 
 
 def detector_window(rho: float) -> int:

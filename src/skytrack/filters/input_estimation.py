@@ -69,8 +69,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from skytrack.core.chi2 import chi2_quantile
 from skytrack.core import linalg
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats
 from skytrack.filters.variable_dimension import (
@@ -92,7 +92,7 @@ def detection_threshold(n_u: int, p_fa: float, window: int, bonferroni: bool = T
     """``chi2_{n_u}^-1(1 - P_fa/N_w)`` (Bonferroni over the N_w onset hypotheses) or ``chi2_{n_u}^-1(1 - P_fa)``."""
     if not 0.0 < p_fa < 1.0:
         raise ValueError(f"input estimation: p_fa must be in (0, 1), got {p_fa}")
-    return float(stats.chi2.ppf(1.0 - (p_fa / window if bonferroni else p_fa), n_u))
+    return float(chi2_quantile(1.0 - (p_fa / window if bonferroni else p_fa), n_u))
 
 
 @dataclass

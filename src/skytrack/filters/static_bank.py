@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from scipy import stats
 from scipy.special import logsumexp
 
+from skytrack.core.chi2 import chi2_quantile
 from skytrack.core import linalg
 from skytrack.filters.base import ArrayState, BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, _names
 from skytrack.filters.imm import posterior_probabilities
@@ -160,7 +160,7 @@ class StaticBankFilter(BatchFilter):
 
     def divergence_threshold(self, n_z: np.ndarray) -> np.ndarray:
         """``chi2_{n_z W}^-1(1 - P_div)`` per row."""
-        return stats.chi2.ppf(1.0 - self.p_divergence, np.asarray(n_z) * self.window)
+        return chi2_quantile(1.0 - self.p_divergence, np.asarray(n_z) * self.window)
 
     def initiate(self, x: np.ndarray, P: np.ndarray) -> BankStateBase:
         rows, count = len(x), self.n_members

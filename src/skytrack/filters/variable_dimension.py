@@ -61,8 +61,8 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from skytrack.core.chi2 import chi2_quantile
 from skytrack.core import linalg
 from skytrack.filters.alpha_beta_gains import detector_threshold, detector_window
 from skytrack.filters.base import BatchFilter, Capabilities, GaussianState, Innovation, UpdateStats, measurement_terms
@@ -83,7 +83,7 @@ RETURN_PROBABILITY = 0.95
 # ---------------------------------------------------------------------------- thresholds
 def return_threshold(n_a: int, window: int) -> float:
     """``chi2_{n_a s}^-1(0.95)``: below it the summed acceleration significance ends a manoeuvre."""
-    return float(stats.chi2.ppf(RETURN_PROBABILITY, n_a * window))
+    return float(chi2_quantile(RETURN_PROBABILITY, n_a * window))
 
 
 # ---------------------------------------------------------------------------- models
