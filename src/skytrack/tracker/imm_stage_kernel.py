@@ -40,7 +40,7 @@ from skytrack.tracker.kernels import (
     joseph_position_update,
     search_candidates,
     window_plots,
-    write_hit,
+    write_hits,
 )
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 from skytrack.tracker.window_kernels import matched_position_block
@@ -270,8 +270,8 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
                         P_all[k, jm, 2 * a + 1, 2 * b + 1] = (first_cov[a, b] + r2) / (dt * dt)
                         P_all[k, jm, 2 * a, 2 * b + 1] = r2 / dt
                         P_all[k, jm, 2 * a + 1, 2 * b] = pair_cov[pair, b, a] / dt
-        write_hit(k, j, pair_pos[pair, 2], gain[pair], t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
-                  icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
+    write_hits(rows, plot_rows, pair_pos[:, 2], gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
+               icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
 
 
 @njit(cache=True, nogil=True)

@@ -352,25 +352,30 @@ def joseph_position_update(xp, Pp, z, R, L, m, K, y, AP, KR, x_out, P_out):
     _symmetrise(P_out, n)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def write_hit(k, j, height, gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a, icao24, iff,
-              plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
-    """The bank columns of track ``k`` after a hit by plot ``j`` (:meth:`ScanProcessor._write_updates`):
-    time, counts, score, the plot's height, and the Mode C, Mode 3/A, Mode S and IFF it carries."""
-    t[k] = plot_time[j]
-    n_updates[k] += 1
-    n_misses[k] = 0
-    score[k] += gain
-    score_max[k] = max(score_max[k], score[k])
-    z_hint[k] = height
-    if np.isfinite(plot_mode_c[j]):
-        alt_m[k] = plot_mode_c[j]
-    if plot_mode3a[j] >= 0:
-        mode3a[k] = plot_mode3a[j]
-    if plot_mode_s[j] >= 0:
-        icao24[k] = plot_mode_s[j]
-    if plot_iff[j] >= 0:
-        iff[k] = plot_iff[j]
+@njit(cache=True, nogil=True, error_model="numpy")
+def write_hits(rows, plot_rows, heights, gains, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a, icao24,
+               iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
+    """The bank columns of tracks ``rows`` after their hits by plots ``plot_rows``
+    (:meth:`ScanProcessor._write_updates`): time, counts, score (``gains``), the plots' heights,
+    and the Mode C, Mode 3/A, Mode S and IFF they carry.  One call per stage, after the state
+    updates: called per hit, the array arguments cost more than the writes."""
+    for c in range(len(rows)):
+        k = rows[c]
+        j = plot_rows[c]
+        t[k] = plot_time[j]
+        n_updates[k] += 1
+        n_misses[k] = 0
+        score[k] += gains[c]
+        score_max[k] = max(score_max[k], score[k])
+        z_hint[k] = heights[c]
+        if np.isfinite(plot_mode_c[j]):
+            alt_m[k] = plot_mode_c[j]
+        if plot_mode3a[j] >= 0:
+            mode3a[k] = plot_mode3a[j]
+        if plot_mode_s[j] >= 0:
+            icao24[k] = plot_mode_s[j]
+        if plot_iff[j] >= 0:
+            iff[k] = plot_iff[j]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -439,5 +444,5 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
             x[k, i] = x_new[i]
             for jj in range(n):
                 P[k, i, jj] = P_new[i, jj]
-        write_hit(k, j, pair_pos[c, 2], gain[c], t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
-                  icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
+    write_hits(rows, plot_rows, pair_pos[:, 2], gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
+               icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)

@@ -97,6 +97,13 @@ def matched_position_block(x, P, mu, pos_index, mean, block):
     exact for one mode of probability 1)."""
     M = x.shape[0]
     dim = len(pos_index)
+    if M == 1 and mu[0] == 1.0:
+        # one mode: the matched moments are the mode's own (what the sums give, exactly)
+        for a in range(dim):
+            mean[a] = x[0, pos_index[a]]
+            for b in range(dim):
+                block[a, b] = P[0, pos_index[a], pos_index[b]]
+        return
     for a in range(dim):
         acc = 0.0
         for j in range(M):
