@@ -294,6 +294,15 @@ def mix_row(x, P, mu, dt, sojourn, fixed, forced_mode, x0, P0, c_out, scratch):
                 acc += weight[i, j] * (x[i, a] - x[0, a])
             e[a] = acc
             x0[j, a] = x[0, a] + acc
+        if M == 3:
+            # the tracker's three-mode sets: the sum over modes written out (same terms, same order)
+            w0, w1, w2 = weight[0, j], weight[1, j], weight[2, j]
+            for a in range(n):
+                for b in range(a, n):
+                    value = w0 * P[0, a, b] + w1 * S[1, a, b] + w2 * S[2, a, b] - e[a] * e[b]
+                    P0[j, a, b] = value
+                    P0[j, b, a] = value
+            continue
         for a in range(n):
             for b in range(a, n):
                 acc = weight[0, j] * P[0, a, b]
