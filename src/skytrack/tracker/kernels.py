@@ -310,7 +310,8 @@ def _innovation_factor(P_pos, R, ndim, L):
 def joseph_position_update(xp, Pp, z, R, L, m, K, y, AP, KR, x_out, P_out):
     """Kalman update of a prediction ``xp``, ``Pp`` (layout ``[x, vx, ...]``) by a position
     measurement ``z`` with noise ``R``, ``L`` the Cholesky factor of ``S = P_pos + R``: gain, state
-    and the Joseph form into ``x_out``, ``P_out`` (symmetrised); ``K``, ``y``, ``AP``, ``KR`` are scratch."""
+    and the Joseph form into ``x_out``, ``P_out`` (its upper triangle, mirrored); ``K``, ``y``, ``AP``, ``KR``
+    are scratch."""
     n = len(xp)
     # K = P H^T S^-1 with H selecting positions: P H^T is the position columns of P
     for i in range(n):
@@ -343,13 +344,14 @@ def joseph_position_update(xp, Pp, z, R, L, m, K, y, AP, KR, x_out, P_out):
             for b in range(m):
                 acc += K[i, b] * R[b, a]
             KR[i, a] = acc - AP[i, 2 * a]
+    # the result is symmetric: its upper triangle is computed and mirrored
     for i in range(n):
-        for jj in range(n):
+        for jj in range(i, n):
             acc = AP[i, jj]
             for a in range(m):
                 acc += KR[i, a] * K[jj, a]
             P_out[i, jj] = acc
-    _symmetrise(P_out, n)
+            P_out[jj, i] = acc
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
