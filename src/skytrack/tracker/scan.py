@@ -9,8 +9,9 @@ A window of one sensor is processed as a composition of parts:
    each stage: the filter predicts the tracks to their reference time, the gate's candidate search
    (k-d tree reference or compiled grid) bounds the pairs, the filter predicts each
    pair to its plot's own time (spec 000 Theorem 2 / R7; an IMM mixes over the interval to the
-   reference time, ``context["mixing_dt"]``, once per scan as in the standard cycle) and innovates it, the scorer gates and
-   costs the pairs, the assigner chooses, and the filter updates the chosen pairs;
+   reference time, ``context["mixing_dt"]``, once per scan as in the standard cycle) and
+   innovates it, the scorer gates and costs the pairs, the assigner chooses, and the filter
+   updates the chosen pairs;
 4. expected tracks without a plot record a miss (no update: spec 000 R4);
 5. plots left over start tentative tracks; M-of-N confirmation and deletion.
 

@@ -19,6 +19,7 @@ from skytrack.core.plots import PlotBatch
 from skytrack.core.tracks import TRACK_OUTPUT_COLUMNS, empty_tracks
 from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots
+from skytrack.filters.imm_kernels import imm_predict_matched
 from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
@@ -27,7 +28,6 @@ from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.output import OutputClock, build_table, instant_record, reported_rows, tracks_arrow, tracks_frame
 from skytrack.tracker.scan import ScanProcessor
 from skytrack.tracker.schedule import Schedule
-from skytrack.filters.imm_kernels import imm_predict_matched
 from skytrack.tracker.window_kernels import report_cv
 
 __all__ = ["TRACK_OUTPUT_COLUMNS", "Tracker"]
