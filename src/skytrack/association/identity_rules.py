@@ -20,9 +20,9 @@ features do not enter it.  The rules (R10), each choosing a track or ``new`` per
   argmax against a constant new-object density (score ``ln lambda``);
 * ``fuzzy`` (12)-(18): score ``ln mu``; ``new`` iff every track scores below ``ln mu_new``;
 * ``nn``: ``fuzzy`` with every feature factor 1 (the Mahalanobis nearest neighbour, D4);
-* ``crisp``: ``nn`` with a veto — ``fuzzy`` with the 0/1 tables
-  :data:`~skytrack.association.features.CRISP_TABLES` (a definite status or a number that
-  differs from the track's forbids the pair).
+* ``crisp``: ``nn`` with a veto (:func:`crisp_veto`: a definite status or a number that
+  differs from the track's forbids the pair) — the same decisions as ``fuzzy`` with the 0/1
+  tables :data:`~skytrack.association.features.CRISP_TABLES` (TV12).
 
 Processing modes (R11): ``greedy`` decides each plot alone (:func:`decide_greedy` on a fixed
 score matrix; the literal paper's tracker also updates the chosen track before the next plot)
@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from skytrack.association.features import CRISP_TABLES, PAPER_TABLES, UNIT_TABLES, FeatureTables
+from skytrack.association.features import CRISP_TABLES, PAPER_TABLES, UNDETERMINED, UNIT_TABLES, FeatureTables
 from skytrack.core.chi2 import chi2_quantile
 
 RULES = ("ml", "fuzzy", "nn", "crisp")
@@ -85,6 +85,27 @@ class RuleConfig:
         if self.rule == "crisp":
             return CRISP_TABLES
         return self.tables if self.rule == "fuzzy" else UNIT_TABLES
+
+
+def crisp_veto(track_iff, plot_iff, track_code, plot_code) -> np.ndarray:
+    """The ``crisp`` rule's veto (R10): a definite status (friend / foe) on both sides that differs,
+    or a number on both sides that differs."""
+    h_g, z_g = np.asarray(track_iff), np.asarray(plot_iff)
+    h_n, z_n = np.asarray(track_code), np.asarray(plot_code)
+    definite = (h_g >= 0) & (h_g != UNDETERMINED) & (z_g >= 0) & (z_g != UNDETERMINED)
+    return (definite & (h_g != z_g)) | ((h_n >= 0) & (z_n >= 0) & (h_n != z_n))
+
+
+def feature_logs(config: RuleConfig, track_iff, plot_iff, track_code, plot_code) -> tuple[np.ndarray, np.ndarray]:
+    """``(ln mu_G, ln mu_N)`` per pair as the rule uses them: the tables for ``fuzzy``, 0 for
+    ``nn`` and ``ml``, 0 or ``-inf`` (the veto, in ``ln mu_G``) for ``crisp``."""
+    shape = np.broadcast(np.asarray(track_iff), np.asarray(plot_iff)).shape
+    if config.rule == "fuzzy":
+        return (config.tables.log_mu_g(track_iff, plot_iff), config.tables.log_mu_n(track_code, plot_code))
+    zero = np.zeros(shape)
+    if config.rule == "crisp":
+        return np.where(crisp_veto(track_iff, plot_iff, track_code, plot_code), -np.inf, 0.0), zero
+    return zero, zero
 
 
 def coordinate_terms(nu: np.ndarray, S: np.ndarray, innovation_cov: str = "full",
@@ -141,10 +162,11 @@ def score_pairs(config: RuleConfig, d2: np.ndarray, logdet: np.ndarray, n_c: np.
                 log_mu_extra: np.ndarray | None = None) -> RuleScores:
     """Scores of pairs from their coordinate terms and feature log-memberships (R7-R10).
 
-    ``log_mu_g`` / ``log_mu_n`` come from the rule's :attr:`RuleConfig.effective_tables`
-    (None = factor 1).  A pair is a hypothesis when ``ml``'s gate ``d^2 <= gamma`` holds, or,
-    for the membership rules, when its score reaches ``ln mu_new`` (a pair below it can never
-    beat the plot's own new object: R11's lossless pruning)."""
+    ``log_mu_g`` / ``log_mu_n`` come from :func:`feature_logs` (or, the same numbers, from the
+    rule's :attr:`RuleConfig.effective_tables`; None = factor 1).  A pair is a hypothesis when
+    ``ml``'s gate ``d^2 <= gamma`` holds, or, for the membership rules, when its score reaches
+    ``ln mu_new`` (a pair below it can never beat the plot's own new object: R11's lossless
+    pruning)."""
     d2 = np.asarray(d2, dtype=float)
     n_c = np.broadcast_to(np.asarray(n_c), d2.shape)
     zero = np.zeros_like(d2)
