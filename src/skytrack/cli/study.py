@@ -19,10 +19,12 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from skytrack.cli.study_fuzzy import register_fuzzy_studies
 from skytrack.cli.study_maneuver import register_maneuver_studies
 
 study_app = typer.Typer(help="Reproduce the studies of the papers in shared/specs.", no_args_is_help=True)
 register_maneuver_studies(study_app)  # spec 004 §6: skytrack study kf-gains, ...
+register_fuzzy_studies(study_app)  # spec 003 §6: skytrack study fuzzy-fig2, fuzzy-regions, fuzzy-gate, ...
 
 #: E5: for P_D >= this, the Monte Carlo ratios must lie within 1 +- MC_BAND
 MC_PD_CHECKED = 0.7

@@ -1,0 +1,162 @@
+"""``skytrack study fuzzy-*``: the fuzzy plot-association studies of spec 003 §6 (R20).
+
+* ``fuzzy-fig2`` — E1, the paper's Fig. 2 (:mod:`skytrack.studies.fuzzy.fig2`);
+* ``fuzzy-regions`` — E2, decision regions along the TV9 line (:mod:`skytrack.studies.fuzzy.regions`);
+* ``fuzzy-gate`` — E3, the effective gate, Monte Carlo vs F_χ²₄(γ + 2 ln Π)
+  (:mod:`skytrack.studies.fuzzy.gate`);
+* ``fuzzy-crossing`` — E4, added to this file by the E4 work (see the marked section below).
+
+Every command takes ``--out`` (output folder), ``--seed`` and ``--check``; it writes a CSV
+and a PNG, prints a rich summary table and the spec's expected values with their verdicts,
+and shows a progress bar for Monte Carlo draws.  With ``--check`` a failed expectation
+exits with code 1; a bad option exits with code 2.  Only typer and rich are imported at
+module level (``skytrack --help`` stays fast); the study modules load when a command runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+console = Console()
+error_console = Console(stderr=True)
+
+OutOption = Annotated[Path, typer.Option("--out", "-o", help="Output folder.")]
+CheckOption = Annotated[bool, typer.Option("--check", help="Exit with code 1 if an expected value of the spec fails.")]
+
+
+def _fail(message: str) -> None:
+    error_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code=2)
+
+
+def _float_list(option: str, text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        _fail(f"{option} expects comma-separated numbers, got {text!r}")
+    if not values:
+        _fail(f"{option} needs at least one value")
+    return values
+
+
+def _checks_table(checks, title: str) -> Table:
+    table = Table(title=title)
+    for column in ("expected value", "measured", "spec", "verdict"):
+        table.add_column(column, overflow="fold")
+    for check in checks:
+        table.add_row(escape(check.name), escape(check.measured), escape(check.expected),
+                      "[green]pass[/green]" if check.passed else "[red]FAIL[/red]")
+    return table
+
+
+def _finish(name: str, checks, paths: list[Path], check: bool) -> None:
+    """Print the verdicts and the written files; exit 1 under ``--check`` when one failed."""
+    console.print(_checks_table(checks, f"{name}: expected values (spec 003 §5, §6)"))
+    console.print("wrote " + ", ".join(str(p) for p in paths))
+    failed = [c.name for c in checks if not c.passed]
+    if failed:
+        console.print(f"[red]{len(failed)} expected value(s) failed: {escape(', '.join(failed))}[/red]")
+        if check:
+            raise typer.Exit(code=1)
+
+
+# --------------------------------------------------------------------------- E1 fuzzy-fig2
+
+
+def fuzzy_fig2(
+    out: OutOption = Path("study-fuzzy-fig2"),
+    seed: Annotated[int, typer.Option("--seed", help="Accepted like every study's; E1 draws no random numbers.")] = 1,
+    check: CheckOption = False,
+) -> None:
+    """E1 (paper's Fig. 2): Gaussian density vs unit-peak membership for σ = 0.5, 1, 2."""
+    from skytrack.studies.fuzzy import fig2
+
+    table = fig2.run_fig2(out)
+    summary = Table(title="fuzzy-fig2: density p vs membership μ (n_c = 1)")
+    for column in ("σ", "peak of p", "1/(σ√(2π))", "peak of μ", "max |μ − pσ√(2π)| / μ"):
+        summary.add_column(column, justify="right")
+    for row in table.itertuples(index=False):
+        summary.add_row(f"{row.sigma:g}", f"{row.peak_p:.6f}", f"{row.peak_p_closed_form:.6f}", f"{row.peak_mu:.15g}",
+                        f"{row.max_rel_identity_error:.1e}")
+    console.print(summary)
+    _finish("fuzzy-fig2", fig2.check_fig2(table),
+            [out / fig2.CSV_NAME, out / fig2.CURVES_CSV_NAME, out / fig2.PNG_NAME], check)
+
+
+# --------------------------------------------------------------------------- E2 fuzzy-regions
+
+
+def fuzzy_regions(
+    out: OutOption = Path("study-fuzzy-regions"),
+    seed: Annotated[int, typer.Option("--seed", help="Accepted like every study's; E2 draws no random numbers.")] = 1,
+    check: CheckOption = False,
+) -> None:
+    """E2: chosen hypothesis along the TV9 line for ml, fuzzy without and with features."""
+    from skytrack.studies.fuzzy import regions
+
+    table = regions.run_regions(out)
+    summary = Table(title="fuzzy-regions: boundaries along x (P_G = 0.99)")
+    for column in ("band", "left | right", "x [m]", "closed form [m]", "error [m]"):
+        summary.add_column(column, justify="right")
+    for row in table.itertuples(index=False):
+        summary.add_row(row.label, f"{row.left} | {row.right}", f"{row.x_m:.3f}", f"{row.closed_form_m:.6f}",
+                        f"{row.error_m:.1e}")
+    console.print(summary)
+    _finish("fuzzy-regions", regions.check_regions(table), [out / regions.CSV_NAME, out / regions.PNG_NAME], check)
+
+
+# --------------------------------------------------------------------------- E3 fuzzy-gate
+
+
+def fuzzy_gate(
+    out: OutOption = Path("study-fuzzy-gate"),
+    seed: Annotated[int, typer.Option("--seed", help="Seed; chunk c draws with SeedSequence(seed).spawn(chunks)[c].")] = 1,
+    samples: Annotated[int, typer.Option("--samples", help="Monte Carlo draws of ν ~ N(0, S) (shared by all points).")] = 400_000,
+    p_gate: Annotated[str, typer.Option("--p-gate", help="Gate probabilities P_G, comma-separated.")] = "0.95,0.99,0.999",
+    check: CheckOption = False,
+) -> None:
+    """E3: probability of keeping the correct track vs the feature product Π (TV11)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from skytrack.studies.fuzzy import gate
+
+    p_gates = _float_list("--p-gate", p_gate)
+    if any(not 0.0 < p < 1.0 for p in p_gates):
+        _fail(f"--p-gate values must lie in (0, 1), got {p_gate!r}")
+    if samples < gate.CHUNKS:
+        _fail(f"--samples must be at least {gate.CHUNKS}, got {samples}")
+    columns = (TextColumn("[bold]fuzzy-gate Monte Carlo"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=error_console, transient=False) as display:
+        task = display.add_task("draws", total=gate.CHUNKS)
+        table = gate.run_gate(out, seed=seed, samples=samples, p_gates=p_gates,
+                              progress=lambda done, total: display.update(task, completed=done, total=total))
+    summary = Table(title=f"fuzzy-gate: P(correct track kept) vs Π ({samples:,} draws, seed {seed})")
+    for column in ("P_G", "case", "Π", "d² limit", "F_χ²₄", "Monte Carlo", "z", "new object"):
+        summary.add_column(column, justify="right")
+    for row in table.itertuples(index=False):
+        summary.add_row(f"{row.p_gate:g}", row.case, f"{row.product:g}", f"{row.d2_limit:.4f}", f"{row.probability:.5f}",
+                        f"{row.mc_kept:.5f}", f"{row.z:+.2f}", f"{100 * row.mc_new_object:.2f} %")
+    console.print(summary)
+    console.print(f"mean exp(−d²/2) = {table['mean_mu_coord'].iloc[0]:.5f} (D6: 0.25)")
+    _finish("fuzzy-gate", gate.check_gate(table), [out / gate.CSV_NAME, out / gate.PNG_NAME], check)
+
+
+# --------------------------------------------------------------------------- E4 fuzzy-crossing
+# Reserved for the E4 study (crossing targets with IFF errors, spec 003 §6 E4 and R20:
+# list-valued sweep options, --methods, CSV + PNG, progress bar over the runs).  Its command
+# function goes here and its registration into register_fuzzy_studies below; the metrics are
+# skytrack.analysis.association_metrics (R19).
+
+
+def register_fuzzy_studies(app: typer.Typer) -> None:
+    """Add the spec 003 studies to the ``skytrack study`` sub-app."""
+    app.command("fuzzy-fig2")(fuzzy_fig2)
+    app.command("fuzzy-regions")(fuzzy_regions)
+    app.command("fuzzy-gate")(fuzzy_gate)
+    # E4: app.command("fuzzy-crossing")(fuzzy_crossing) -- added with the E4 study
