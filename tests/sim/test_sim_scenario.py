@@ -59,7 +59,7 @@ def test_unknown_keys_are_rejected_with_the_known_ones():
 @pytest.mark.parametrize(
     ("patch", "expected"),
     [
-        ({"sensors": [radar(type="radar-4d")]}, "sensors[0].type: must be one of radar-2d, radar-3d, got 'radar-4d'"),
+        ({"sensors": [radar(type="radar-4d")]}, "sensors[0].type: must be one of radar-2d, radar-3d, radar-airborne, got 'radar-4d'"),
         ({"sensors": [radar(p_detection=1.5)]}, "sensors[0].p_detection: must be <= 1, got 1.5"),
         ({"sensors": [radar(sigma_elevation_deg=0.2)]}, "sensors[0].sigma_elevation_deg: is only allowed for type radar-3d"),
         ({"sensors": [radar(type="radar-3d")]}, "sensors[0].sigma_elevation_deg: required key is missing"),

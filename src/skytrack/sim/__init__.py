@@ -1,4 +1,4 @@
-"""skytrack.sim — scenario simulator: scripted and random trajectories, rotating radars, SSR, clutter.
+"""skytrack.sim — scenario simulator: scripted and random trajectories, rotating and airborne radars, SSR, IFF, clutter.
 
 * :func:`load_scenario` reads a scenario (YAML file, bundled name such as ``"demo"``, or dict)
   into a validated :class:`Scenario`; the key reference is the docstring of
@@ -12,7 +12,9 @@
 Modules: ``scenario`` (:class:`Scenario`, loading), ``spec`` (the scenario section
 dataclasses), ``parse`` (section parsers and validation), ``traffic`` (random aircraft), ``trajectories``
 (exact arcs, Singer legs, waypoints), ``truth`` (sampling, coverage exit), ``radar``
-(beam crossings, detection, noise, SSR, clutter), ``earth`` (heights above the ellipsoid
+(beam crossings, detection, noise, SSR, clutter), ``carrier`` (airborne radars: the carrier's
+flight and the plots measured from it), ``iff`` (the IFF responder and interrogation
+policies of spec 003), ``earth`` (heights above the ellipsoid
 in the ENU frame, radar horizon), ``simulate`` (the pipeline), ``cleaning`` (recorded
 state vectors cleaned and cut into segments), ``recorded`` (the ``recorded`` section, the
 bundled recordings, the window, ADS-B reports), ``recorded_motion`` (segments as cubic

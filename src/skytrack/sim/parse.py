@@ -1,4 +1,5 @@
-"""Parsers of the scenario sections: sensors, targets with their legs, and random traffic.
+"""Parsers of the scenario sections: sensors (with their IFF interrogator and an airborne
+radar's carrier), targets with their legs, and random traffic.
 
 Each parser reads one section of a scenario document through :class:`~skytrack.sim._validate.Fields`
 (errors name the document and the key path) into the dataclasses of :mod:`skytrack.sim.spec`;
@@ -8,6 +9,7 @@ Each parser reads one section of a scenario document through :class:`~skytrack.s
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -21,9 +23,11 @@ from skytrack.sim.earth import place_at_height, sensor_relative_positions
 from skytrack.sim.spec import (
     LEG_TYPES,
     SCENARIO_TYPES,
+    TARGET_IFF_STATUSES,
     AccelerateLeg,
     ClimbLeg,
     ClutterPatch,
+    IffSpec,
     LandLeg,
     Leg,
     ManeuverSpec,
@@ -48,11 +52,15 @@ _SENSOR_VALUE_KEYS = (
     "p_detection", "clutter_per_scan",
 )
 _SENSOR_SIM_KEYS = ("p_mode3a", "p_mode_c", "clutter_elevation_deg", "clutter_range_rate_mps",
-                    "clutter_distribution", "clutter_patches", "clutter_p_mode3a", "clutter_p_mode_c")
+                    "clutter_distribution", "clutter_patches", "clutter_p_mode3a", "clutter_p_mode_c", "iff")
+#: per-sensor only (no sensor_defaults): the flight of a radar-airborne sensor's carrier
+_CARRIER_KEY = "carrier"
+_IFF_KEYS = ("p_reply", "p_flip", "p_code", "false_reply_p", "interrogate")
+_CARRIER_KEYS = ("x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m", "speed_mps", "heading_deg", "legs")
 _PATCH_KEYS = ("range_m", "azimuth_deg", "per_scan")
 _TARGET_KEYS = (
     "id", "start_time_s", "x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m",
-    "speed_mps", "heading_deg", "transponder", "mode3a", "icao24", "legs",
+    "speed_mps", "heading_deg", "transponder", "mode3a", "icao24", "iff", "iff_p_reply", "legs",
 )
 _LEG_KEYS = {
     "straight": ("type", "duration_s"),
@@ -87,26 +95,33 @@ class _Context:
 # -- sensors -------------------------------------------------------------------------------
 
 
-def _parse_sensors(top: Fields, origin: Origin) -> tuple[SensorSet, dict[str, RadarSimParams]]:
+def _parse_sensors(top: Fields, origin: Origin, duration_s: float) -> tuple[SensorSet, dict[str, RadarSimParams]]:
     defaults = top.sub("sensor_defaults", _SENSOR_VALUE_KEYS + _SENSOR_SIM_KEYS + ("type",), None)
     items = top.items("sensors")
     if not items:
         raise top.error("sensors", "at least one sensor is needed")
     sensors: list[Sensor] = []
     params: dict[str, RadarSimParams] = {}
+    carriers: dict[str, Fields] = {}
     for path, item in items:
         if isinstance(item, dict) and defaults is not None:
             item = {**defaults.data, **item}
-        fields = Fields(item, path, top.source, _POSITION_KEYS + _SENSOR_VALUE_KEYS + _SENSOR_SIM_KEYS)
+        fields = Fields(item, path, top.source, _POSITION_KEYS + _SENSOR_VALUE_KEYS + _SENSOR_SIM_KEYS + (_CARRIER_KEY,))
         sensor, sim = _parse_sensor(fields, origin)
         if sensor.name in params:
             raise fields.error("name", f"sensor name {sensor.name!r} is used twice")
         sensors.append(sensor)
         params[sensor.name] = sim
+        if sensor.is_moving:
+            carriers[sensor.name] = fields
     try:
         sensor_set = SensorSet(origin=origin, sensors=sensors)
     except ValueError as exc:  # pragma: no cover - positions are made consistent above
         raise ScenarioError(f"{top.source}: sensors: {exc}") from None
+    # carriers may be placed relative to a ground sensor, so they are read once all sensors are known
+    ctx = _Context(origin, sensor_set, duration_s, top.source)
+    for name, fields in carriers.items():
+        params[name] = dataclasses.replace(params[name], carrier=_parse_carrier(fields, name, ctx))
     return sensor_set, params
 
 
@@ -115,9 +130,20 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
     if not name:
         raise f.error("name", "must not be empty")
     kind = f.string("type", "radar-2d", choices=SCENARIO_TYPES)
-    lat, lon, alt, x, y, z = _sensor_position(f, origin)
+    airborne = kind == "radar-airborne"
+    if airborne:
+        lat = lon = alt = x = y = z = None
+        for key in ("lat", "lon", "alt_m", "x", "y", "z", "clutter_patches"):
+            if f.has(key):
+                raise f.error(key, "is not allowed for type radar-airborne (the radar flies with its carrier: give carrier)")
+        if not f.has(_CARRIER_KEY):
+            raise f.error(_CARRIER_KEY, "is required for type radar-airborne: the carrier's start and legs, as a target's")
+    else:
+        if f.has(_CARRIER_KEY):
+            raise f.error(_CARRIER_KEY, "is only allowed for type radar-airborne")
+        lat, lon, alt, x, y, z = _sensor_position(f, origin)
     north = f.number("north_offset_deg", None)
-    if north is not None:
+    if north is not None and not airborne:
         derived = SensorSet(origin, [Sensor(name=name, lat=lat, lon=lon, alt_m=alt)]).sensors[0].north_offset_deg
         if abs((north - derived + 180.0) % 360.0 - 180.0) > 1e-3:
             raise f.error(
@@ -126,11 +152,14 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
             )
     if kind == "radar-3d":
         sigma_el = f.number("sigma_elevation_deg", ge=0.0)
+    elif airborne:
+        sigma_el = f.number("sigma_elevation_deg", None, ge=0.0)
     elif f.has("sigma_elevation_deg"):
-        raise f.error("sigma_elevation_deg", "is only allowed for type radar-3d")
+        raise f.error("sigma_elevation_deg", "is only allowed for type radar-3d or radar-airborne")
     else:
         sigma_el = None
-    min_el = f.number("min_elevation_deg", 0.0, ge=-90.0, lt=90.0)
+    # an airborne radar looks down as well as up
+    min_el = f.number("min_elevation_deg", -90.0 if airborne else 0.0, ge=-90.0, lt=90.0)
     sensor = Sensor(
         name=name,
         type=kind,
@@ -155,14 +184,63 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
     sim = RadarSimParams(
         p_mode3a=f.number("p_mode3a", 1.0, ge=0.0, le=1.0),
         p_mode_c=f.number("p_mode_c", 1.0, ge=0.0, le=1.0),
-        clutter_elevation_deg=f.interval("clutter_elevation_deg", (min_el, min(min_el + 10.0, 90.0)), ge=-90.0, le=90.0),
+        clutter_elevation_deg=f.interval("clutter_elevation_deg", _clutter_elevation_default(min_el, airborne), ge=-90.0, le=90.0),
         clutter_range_rate_mps=f.interval("clutter_range_rate_mps", (-300.0, 300.0)),
         clutter_distribution=f.string("clutter_distribution", "range", choices=("range", "area")),
         clutter_patches=_parse_patches(f, sensor.max_range_m),
         clutter_p_mode3a=f.number("clutter_p_mode3a", 0.0, ge=0.0, le=1.0),
         clutter_p_mode_c=f.number("clutter_p_mode_c", 0.0, ge=0.0, le=1.0),
+        iff=_parse_iff(f.sub("iff", _IFF_KEYS, None)),
     )
     return sensor, sim
+
+
+def _clutter_elevation_default(min_el: float, airborne: bool) -> tuple[float, float]:
+    """False plots from the lowest elevation up 10 deg; an airborne radar's within +-10 deg of its horizontal."""
+    if airborne:
+        return (max(min_el, -10.0), max(min_el, 10.0))
+    return (min_el, min(min_el + 10.0, 90.0))
+
+
+def _parse_iff(f: Fields | None) -> IffSpec | None:
+    """The IFF interrogator of a radar; ``interrogate`` is always, never or [[start, end], ...] (s)."""
+    if f is None:
+        return None
+    policy = f.raw("interrogate", "always")
+    if isinstance(policy, str):
+        if policy == "track":
+            raise f.error("interrogate", "track (interrogate until the status is determined) needs the tracker's "
+                                         "tracks, which the simulator does not have; give always, never or time windows")
+        policy = f.string("interrogate", "always", choices=("always", "never"))
+    else:
+        windows = []
+        for path, window in f.items("interrogate"):
+            if not isinstance(window, list) or len(window) != 2:
+                raise f.error_at(path, f"must be a [start, end] pair of seconds, got {describe(window)}")
+            start, end = (f.check_number(join_path(path, i), value, ge=0.0) for i, value in enumerate(window))
+            if end < start:
+                raise f.error_at(path, f"start must be <= end, got [{start:g}, {end:g}]")
+            windows.append((start, end))
+        if not windows:
+            raise f.error("interrogate", "give at least one [start, end] window, or never")
+        policy = tuple(windows)
+    return IffSpec(
+        p_reply=f.number("p_reply", 0.9, ge=0.0, le=1.0),
+        p_flip=f.number("p_flip", 0.0, ge=0.0, le=1.0),
+        p_code=f.number("p_code", 0.0, ge=0.0, le=1.0),
+        false_reply_p=f.number("false_reply_p", 0.0, ge=0.0, le=1.0),
+        interrogate=policy,
+    )
+
+
+def _parse_carrier(sensor_fields: Fields, name: str, ctx: _Context) -> TargetSpec:
+    """The carrier of an airborne radar: a target's start and legs, flown from t = 0."""
+    raw = sensor_fields.raw(_CARRIER_KEY)
+    carrier = Fields(raw, join_path(sensor_fields.path, _CARRIER_KEY), sensor_fields.source, _CARRIER_KEYS)
+    spec = _parse_target(Fields({**carrier.data, "id": name}, carrier.path, carrier.source, _CARRIER_KEYS + ("id",)), ctx)
+    if spec.legs and isinstance(spec.legs[-1], LandLeg):
+        raise carrier.error(f"legs[{len(spec.legs) - 1}]", "a carrier does not land (its radar would stop measuring)")
+    return spec
 
 
 def _parse_patches(f: Fields, max_range_m: float) -> tuple[ClutterPatch, ...]:
@@ -228,11 +306,19 @@ def _horizontal_position(f: Fields, ctx: _Context, alt_m: float) -> tuple[float,
     if kind == "lat/lon":
         e, n, _ = geodetic_to_enu(f.number("lat", ge=-90.0, le=90.0), f.number("lon", ge=-180.0, le=360.0), alt_m, *_origin_tuple(ctx.origin))
         return float(e), float(n)
+    name = _ground_sensor(f, ctx)
+    x, y = sensor_relative_positions(ctx.sensors[name], ctx.origin, f.number("range_m", ge=0.0), f.number("azimuth_deg"), alt_m)
+    return float(x[0]), float(y[0])
+
+
+def _ground_sensor(f: Fields, ctx: _Context) -> str:
+    """The ``sensor`` key naming a known sensor that stands still (positions are relative to it)."""
     name = f.string("sensor")
     if name not in ctx.sensors:
         raise f.error("sensor", f"unknown sensor {name!r}; sensors: {', '.join(ctx.sensors.names)}")
-    x, y = sensor_relative_positions(ctx.sensors[name], ctx.origin, f.number("range_m", ge=0.0), f.number("azimuth_deg"), alt_m)
-    return float(x[0]), float(y[0])
+    if ctx.sensors[name].is_moving:
+        raise f.error("sensor", f"{name!r} is airborne: place positions relative to a ground sensor or as x/y, lat/lon")
+    return name
 
 
 def _origin_tuple(origin: Origin) -> tuple[float, float, float]:
@@ -254,6 +340,10 @@ def _parse_target(f: Fields, ctx: _Context) -> TargetSpec:
     transponder = f.boolean("transponder", mode3a is not None or icao24 is not None)
     if not transponder and (mode3a is not None or icao24 is not None):
         raise f.error("transponder", "is false but mode3a/icao24 is given")
+    iff = f.string("iff", None, choices=TARGET_IFF_STATUSES)
+    iff_p_reply = f.number("iff_p_reply", None, ge=0.0, le=1.0)
+    if iff_p_reply is not None and iff is None:
+        raise f.error("iff_p_reply", "needs iff (the target's true status, friend or foe)")
     legs = _parse_legs(f, ctx, alt)
     return TargetSpec(
         id=str(raw_id),
@@ -267,6 +357,8 @@ def _parse_target(f: Fields, ctx: _Context) -> TargetSpec:
         transponder=transponder,
         mode3a=mode3a,
         icao24=icao24,
+        iff=iff,
+        iff_p_reply=iff_p_reply,
     )
 
 
@@ -411,9 +503,7 @@ def _parse_region(f: Fields, ctx: _Context) -> RegionSpec:
         for key in ("x_m", "y_m"):
             if f.has(key):
                 raise f.error(key, "is only allowed for type rectangle")
-        name = f.string("sensor")
-        if name not in ctx.sensors:
-            raise f.error("sensor", f"unknown sensor {name!r}; sensors: {', '.join(ctx.sensors.names)}")
+        name = _ground_sensor(f, ctx)
         low = f.number("min_range_m", 0.0, ge=0.0)
         high = f.number("max_range_m", gt=low)
         return RegionSpec("annulus", sensor=name, min_range_m=low, max_range_m=high)

@@ -75,24 +75,30 @@ class TruthSamples:
     velocity: np.ndarray  # [R, 3]
 
 
-def polar_view(sensor: Sensor, position: np.ndarray, velocity: np.ndarray | None = None):
-    """Range, azimuth, elevation (rad) [, range rate] and ground distance in the sensor's own frame."""
-    local = sensor.to_local(position)
+def polar_view(sensor: Sensor, position: np.ndarray, velocity: np.ndarray | None = None,
+               sensor_position: np.ndarray | None = None, sensor_velocity: np.ndarray | None = None):
+    """Range, azimuth, elevation (rad) [, range rate] and ground distance in the sensor's own frame.
+
+    ``sensor_position`` / ``sensor_velocity`` ``[K, 3]``: where a moving sensor (an airborne
+    radar's carrier) is at each row; the range rate is then relative to it."""
+    local = sensor.to_local(position, sensor_position)
     ground = np.hypot(local[:, 0], local[:, 1])
     if velocity is None:
         r, az, el = cartesian_to_polar(local[:, 0], local[:, 1], local[:, 2])
         return r, az, el, None, ground
-    v = velocity @ sensor.rotation.T
+    relative = velocity if sensor_velocity is None else velocity - sensor_velocity
+    v = relative @ sensor.rotation.T
     r, az, el, rdot = cartesian_to_polar(local[:, 0], local[:, 1], local[:, 2], v[:, 0], v[:, 1], v[:, 2])
     return r, az, el, rdot, ground
 
 
-def in_coverage(sensor: Sensor, r, el, ground, target_alt_m) -> np.ndarray:
-    """Inside max range, above the minimum elevation and within the radar horizon."""
+def in_coverage(sensor: Sensor, r, el, ground, target_alt_m, sensor_alt_m=None) -> np.ndarray:
+    """Inside max range, above the minimum elevation and within the radar horizon
+    (``sensor_alt_m``: the height of a moving sensor at each row)."""
     return (
         (r <= sensor.max_range_m)
         & (el >= math.radians(sensor.min_elevation_deg))
-        & (ground <= radar_horizon_range(sensor.alt_m, target_alt_m))
+        & (ground <= radar_horizon_range(sensor.alt_m if sensor_alt_m is None else sensor_alt_m, target_alt_m))
     )
 
 

@@ -25,10 +25,11 @@ Top level
 ``origin``             ``{lat, lon, alt_m}`` of the common ENU frame (alt_m default 0)
 ``epoch_utc``          ISO-8601 UTC time of t = 0 (optional, written to sensors.json)
 ``duration_s``         simulated time span [0, duration_s]; > 0, required
-``seed``               integer >= 0 (default 0).  Trajectories, including random traffic and
-                       Singer legs, depend on the seed only; sensor randomness (detection,
-                       noise, clutter, SSR) comes from the Generator given to ``simulate``
-                       (default: one derived from the same seed)
+``seed``               integer >= 0 (default 0).  Trajectories, including random traffic,
+                       Singer legs and airborne radars' carriers, depend on the seed only;
+                       sensor randomness (detection, noise, clutter, SSR, plot order) comes
+                       from the Generator given to ``simulate`` (default: one derived from
+                       the same seed), IFF replies from children spawned from it
 ``truth_sample_s``     truth sampling step, default 1.0
 ``sensor_defaults``    mapping of sensor keys applied to every sensor that does not set them
 ``sensors``            list of sensors (at least one)
@@ -39,7 +40,7 @@ Top level
 Sensors (``sensors[i]``) -- the key names of ``sensors.json`` (FORMATS.md)
 ----------------------------------------------------------------------
 ``name``                  unique text, required
-``type``                  ``radar-2d`` (default) or ``radar-3d``
+``type``                  ``radar-2d`` (default), ``radar-3d`` or ``radar-airborne`` (below)
 ``lat``, ``lon``          geodetic position, or
 ``x``, ``y`` [, ``z``]    position in the common ENU frame (m).  Without ``z`` the sensor is at
                           height ``alt_m`` above the ellipsoid; with ``z`` its height follows
@@ -52,17 +53,19 @@ Sensors (``sensors[i]``) -- the key names of ``sensors.json`` (FORMATS.md)
                           north at scan_phase_s + k scan_period_s and turns clockwise
 ``sigma_range_m``         range noise standard deviation >= 0, required
 ``sigma_azimuth_deg``     azimuth noise standard deviation >= 0, required
-``sigma_elevation_deg``   elevation noise, required for radar-3d, not allowed for radar-2d
+``sigma_elevation_deg``   elevation noise, required for radar-3d, optional for radar-airborne
+                          (absent: its plots carry no elevation), not allowed for radar-2d
 ``sigma_range_rate_mps``  range-rate noise; absent/null = the radar measures no range rate
 ``max_range_m``           instrumented range, > 0, required
-``min_elevation_deg``     lowest elevation seen, default 0 (in [-90, 90))
+``min_elevation_deg``     lowest elevation seen, default 0 (radar-airborne: -90) (in [-90, 90))
 ``p_detection``           detection probability per beam crossing in coverage, default 1
 ``clutter_per_scan``      Poisson mean of false plots per scan, default 0
 Simulation-only keys (not written to sensors.json):
 ``p_mode3a``              probability that a plot of a transponder target carries Mode 3/A (default 1)
 ``p_mode_c``              same for Mode C (default 1)
 ``clutter_elevation_deg`` [low, high] elevation of false plots of a radar-3d
-                          (default [min_elevation_deg, min_elevation_deg + 10])
+                          (default [min_elevation_deg, min_elevation_deg + 10]) or of a
+                          radar-airborne with sigma_elevation_deg (default [-10, 10])
 ``clutter_range_rate_mps`` [low, high] range rate of false plots (default [-300, 300])
 ``clutter_distribution``  ``range`` (default: uniform in range and azimuth, dense near the radar
                           as a real radar's) or ``area`` (uniform over the coverage disc)
@@ -77,7 +80,51 @@ Simulation-only keys (not written to sensors.json):
                           over 0000-7777 (default 0)
 ``clutter_p_mode_c``      probability that a false plot carries a random Mode C height, uniform
                           over 0-45 000 ft rounded to 100 ft (default 0)
+``iff``                   IFF interrogator of this radar (any type; default none: the plots'
+                          ``iff`` column stays empty), below
 Every false plot (coverage-wide or in a patch) comes when the beam crosses its azimuth.
+
+Airborne radar (``type: radar-airborne``) -- spec 003 §2.3, R17
+----------------------------------------------------------------
+The radar flies with its carrier and has no position keys (``lat``, ``lon``, ``x``, ``y``,
+``z``, ``alt_m`` are refused) and no ``clutter_patches``.
+``carrier``               required: the carrier's flight with a target's keys ``x``/``y`` (or
+                          ``lat``/``lon``, or ``range_m``/``azimuth_deg``/``sensor`` of a ground
+                          sensor), ``alt_m``, ``speed_mps``, ``heading_deg`` and ``legs`` (any
+                          leg but ``land``); it flies from t = 0 and is not a target (no truth
+                          rows, no plots)
+``scan_period_s``         time between scans: all plots of scan k have the time
+                          ``scan_phase_s + k scan_period_s`` (no rotating beam); each scan's
+                          plots come in a random order
+Plots are measured from the carrier's position and velocity at the plot time, in the
+common frame's axes turned by ``north_offset_deg`` (default 0; stabilised angles):
+range, azimuth, elevation (with ``sigma_elevation_deg``) and range rate relative to the
+carrier (with ``sigma_range_rate_mps``; positive opening).  Coverage: range <=
+``max_range_m``, elevation >= ``min_elevation_deg``, the radar horizon of the carrier's and
+the target's heights.  The plots carry the carrier's ENU state in the ``platform_x`` ...
+``platform_vz`` columns (FORMATS.md) and sensors.json gets type ``radar-airborne``.
+``clutter_per_scan`` false plots per scan are uniform in azimuth, in range
+(``clutter_distribution``), ``clutter_elevation_deg`` and ``clutter_range_rate_mps``.
+
+IFF interrogator (``sensors[i].iff``) -- spec 003 R16, R18
+----------------------------------------------------------
+``p_reply``               probability that an interrogated target replies (default 0.9; a
+                          target's ``iff_p_reply`` replaces it for that target)
+``p_flip``                probability that the replied status is flipped friend <-> foe (default 0)
+``p_code``                probability that the replied Mode 3/A code is replaced by one drawn
+                          uniformly from the other 4095 codes (default 0)
+``false_reply_p``         probability that an interrogated false plot carries a reply, with a
+                          random status and code (default 0)
+``interrogate``           ``always`` (default), ``never``, or a list of ``[start, end]`` time
+                          windows (s, closed): the plots interrogated.  The spec's policy
+                          ``track`` (interrogate until the tracker has determined the status)
+                          needs the tracker's tracks and is not available in the simulator
+An interrogated target with an ``iff`` status replies (:func:`skytrack.sim.iff.respond`):
+the plot's ``iff`` column gets the (possibly flipped) status and its ``mode3a`` column the
+(possibly corrupted) code of the target's ``mode3a``.  With an interrogator the radar's
+Mode 3/A comes from the IFF replies only, so uninterrogated plots carry none; Mode C and
+Mode S are unchanged.  The replies draw from a random stream of their own, so adding or
+changing ``iff`` leaves every other plot column bit-identical.
 
 Coverage: slant range <= max_range_m, elevation in the sensor's frame >= min_elevation_deg,
 and ground distance within the 4/3-Earth radar horizon of sensor and target heights.
@@ -95,6 +142,9 @@ position, one of:  ``x``, ``y`` (common ENU, m) | ``lat``, ``lon`` |
 ``transponder``    true/false; default true when ``mode3a`` or ``icao24`` is given
 ``mode3a``         Mode 3/A code, a *quoted* string of 4 octal digits ("0100")
 ``icao24``         Mode S address, 6 hex digits (reported as ``mode_s``); needs a transponder
+``iff``            true IFF status, ``friend`` or ``foe``; absent = no IFF transponder (never
+                   replies to an interrogator).  The replied code is the target's ``mode3a``
+``iff_p_reply``    this target's reply probability (replaces the radar's ``p_reply``); needs ``iff``
 ``legs``           list of manoeuvres flown one after the other; after the last leg the
                    target flies straight and level until ``duration_s`` or until it has
                    left the coverage of every sensor for good (outside every max range
@@ -347,7 +397,7 @@ def _parse(data: Any, source: str, default_name: str, base_dir: Path | None = No
     )
     duration = top.number("duration_s", gt=0.0)
     epoch = top.timestamp("epoch_utc", None)
-    sensors, radar_params = _parse_sensors(top, origin)
+    sensors, radar_params = _parse_sensors(top, origin, duration)
     sensors.epoch_utc = epoch
     context = _Context(origin, sensors, duration, source)
     targets = tuple(_parse_target(Fields(item, path, source, _TARGET_KEYS), context) for path, item in top.items("targets", None))

@@ -14,27 +14,45 @@ segments join the scripted targets and random traffic as targets after them
 window (``result.recorded``), the ADS-B reports of the recorded samples (``result.adsb``)
 and sensors.json's ``epoch_utc`` is the window's start.
 
-Randomness: trajectories (traffic, Singer legs) come from the scenario seed alone;
-detections, noise, SSR replies and clutter come from ``rng`` (default: a Generator derived
-from the scenario seed), so Monte Carlo runs over one scenario share the same truth.
+Airborne radars (``radar-airborne``, :mod:`skytrack.sim.carrier`) measure from their
+carrier's flight; their plots carry the carrier's state in the ``platform_*`` columns
+(present in the table only when the scenario has an airborne radar; NaN on the plots of
+ground radars), and ``result.carriers`` holds the carriers' trajectories.
+
+IFF (spec 003 R16, R18): a radar with an ``iff`` section interrogates its plots by its
+policy (``always``, ``never`` or time windows) and :func:`skytrack.sim.iff.respond` fills
+the ``iff`` column and the ``mode3a`` column (the reply's code replaces the SSR Mode 3/A of
+that radar, so uninterrogated plots carry none) from each target's true ``iff`` status and
+``mode3a`` code.  Without an ``iff`` section the ``iff`` column stays empty.
+
+Randomness: trajectories (traffic, Singer legs, carriers) come from the scenario seed alone;
+detections, noise, SSR replies, clutter and plot order come from ``rng`` (default: a
+Generator derived from the scenario seed), so Monte Carlo runs over one scenario share the
+same truth.  IFF replies come from a generator spawned from ``rng`` (one child per radar,
+:meth:`numpy.random.Generator.spawn`, which draws nothing from ``rng``): adding, removing or
+changing an ``iff`` section leaves every other column bit-identical.
 """
 
 from __future__ import annotations
 
 import copy
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from skytrack.core.plots import IFF_VALUES, PLATFORM_COLUMNS
 from skytrack.geo.sensors import SensorSet
 from skytrack.sim._validate import ScenarioError
-from skytrack.sim.radar import PLOT_COLUMNS, clutter_plots, radar_plots
+from skytrack.sim.carrier import Carriers, airborne_plots, build_carriers
+from skytrack.sim.iff import interrogation_mask, mode3a_int, respond
+from skytrack.sim.radar import MODE3A_CODES, PLOT_COLUMNS, clutter_plots, radar_plots
 from skytrack.sim.recorded import RecordedSpec, RecordedTraffic, prepare_recorded
 from skytrack.sim.recorded_motion import concatenate_trajectories
 from skytrack.sim.scenario import Scenario
-from skytrack.sim.spec import TargetSpec
+from skytrack.sim.spec import TARGET_IFF_STATUSES, RadarSimParams, TargetSpec
 from skytrack.sim.traffic import seed_stream
 from skytrack.sim.trajectories import TrajectorySet, build_trajectories
 from skytrack.sim.truth import TruthTable, sample_truth
@@ -56,6 +74,7 @@ class SimulationResult:
     targets: pd.DataFrame  # one row per target: target_id, mode3a, icao24, transponder, start/end time, callsign
     adsb: pd.DataFrame | None = None  # ADS-B reports of recorded traffic (FORMATS.md "adsb" + truth_id)
     recorded: RecordedTraffic | None = None  # cleaning counts, window and samples of recorded traffic
+    carriers: Carriers | None = None  # flights of the airborne radars' carriers
 
 
 def simulate(
@@ -92,21 +111,32 @@ def simulate(
         # the recording places time 0: sensors.json tells when that was
         sensors = copy.copy(scenario.sensors)
         sensors.epoch_utc = from_recording.epoch_utc
+    carrier_specs = {name: p.carrier for name, p in scenario.radar_params.items() if p.carrier is not None}
+    carriers = build_carriers(carrier_specs, scenario.duration_s, scenario.origin, seed_stream(scenario.seed, "carriers"))
     report(_PROGRESS_TRAJECTORIES)
     truth = sample_truth(
         traj,
         sensors,
         scenario.truth_sample_s,
         progress=lambda f: report(_PROGRESS_TRAJECTORIES + _PROGRESS_TRUTH * f),
+        carriers=carriers,
     )
     report(_PROGRESS_TRAJECTORIES + _PROGRESS_TRUTH)
     parts = []
     radars = sensors.sensors
+    iff_streams = _spawn(sensor_rng, len(radars))
+    responder = _Responder(targets, traj)
     done = _PROGRESS_TRAJECTORIES + _PROGRESS_TRUTH
     for number, sensor in enumerate(radars):
         params = scenario.radar_params[sensor.name]
-        for columns in (radar_plots(sensor, params, traj, truth.samples, sensor_rng), clutter_plots(sensor, params, scenario.duration_s, sensor_rng)):
+        if sensor.is_moving:
+            generated = [airborne_plots(sensor, params, carriers, traj, scenario.duration_s, sensor_rng)]
+        else:
+            generated = [radar_plots(sensor, params, traj, truth.samples, sensor_rng),
+                         clutter_plots(sensor, params, scenario.duration_s, sensor_rng)]
+        for columns in generated:
             columns["sensor_number"] = np.full(columns["time"].size, number, dtype=np.int64)
+            responder.fill(columns, params, iff_streams[number])
             parts.append(columns)
         report(done + (1.0 - done) * (number + 1) / len(radars) * 0.95)
     plots = _plot_frame(parts, [s.name for s in radars])
@@ -119,16 +149,75 @@ def simulate(
         targets=_target_frame(targets, traj, from_recording),
         adsb=None if from_recording is None else from_recording.adsb,
         recorded=from_recording,
+        carriers=carriers,
     )
     report(1.0)
     return result
 
 
+def _spawn(rng: np.random.Generator, count: int) -> list[np.random.Generator]:
+    """``count`` independent child generators of ``rng``; spawning draws nothing from ``rng``."""
+    try:
+        return rng.spawn(count)
+    except (TypeError, ValueError):  # a bit generator without a seed sequence: derive one from its state
+        digest = hashlib.sha256(repr(rng.bit_generator.state).encode()).digest()
+        seed = np.random.SeedSequence(int.from_bytes(digest[:16], "little"))
+        return [np.random.default_rng(child) for child in seed.spawn(count)]
+
+
+def _is_mode3a(code) -> bool:
+    return isinstance(code, str) and len(code) == 4 and all(c in "01234567" for c in code)
+
+
+class _Responder:
+    """The targets' true IFF (status and Mode 3/A code) and each radar's interrogation."""
+
+    def __init__(self, targets: list[TargetSpec], traj: TrajectorySet):
+        n_objects = len(traj)
+        self.status = np.full(n_objects, -1, dtype=np.int64)  # recorded traffic: no IFF transponder
+        # a recorded squawk that is no 4-digit octal code cannot be replied
+        self.code = np.array([mode3a_int(code) if _is_mode3a(code) else -1 for code in traj.mode3a], dtype=np.int64)
+        self.p_reply = np.full(n_objects, np.nan)
+        for k, target in enumerate(targets):
+            if target.iff is not None:
+                self.status[k] = TARGET_IFF_STATUSES.index(target.iff)
+            if target.iff_p_reply is not None:
+                self.p_reply[k] = target.iff_p_reply
+        self.ids = pd.Index(traj.ids)
+
+    def fill(self, columns: dict[str, np.ndarray], params: RadarSimParams, rng: np.random.Generator) -> None:
+        """Set the ``iff`` column and, for a radar with an interrogator, its ``mode3a`` column."""
+        count = columns["time"].size
+        if params.iff is None:
+            columns["iff"] = np.full(count, None, dtype=object)
+            return
+        spec = params.iff
+        objects = self.ids.get_indexer(pd.Index(columns["truth_id"].astype(object)))
+        status, code = respond(
+            objects,
+            interrogation_mask(columns["time"], spec.interrogate),
+            self.status,
+            self.code,
+            rng,
+            p_reply=np.where(np.isnan(self.p_reply), spec.p_reply, self.p_reply),
+            p_flip=spec.p_flip,
+            p_code=spec.p_code,
+            false_reply_p=spec.false_reply_p,
+        )
+        replied = status >= 0
+        columns["iff"] = np.where(replied, np.asarray(IFF_VALUES, dtype=object)[np.maximum(status, 0)], None)
+        columns["mode3a"] = np.where(code >= 0, MODE3A_CODES[np.maximum(code, 0)], None)
+
+
 def _plot_frame(parts: list[dict[str, np.ndarray]], sensor_names: list[str]) -> pd.DataFrame:
-    """Merge the radars' plots in time order (ties: sensor order, then generation order)."""
+    """Merge the radars' plots in time order (ties: sensor order, then generation order); the
+    platform columns follow when any radar is airborne (NaN on ground radars' plots)."""
+    airborne = any(PLATFORM_COLUMNS[0] in p for p in parts)
+    if airborne:
+        parts = [p if PLATFORM_COLUMNS[0] in p else {**p, **{c: np.full(p["time"].size, np.nan) for c in PLATFORM_COLUMNS}}
+                 for p in parts]
     merged = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
     order = np.lexsort((merged["sensor_number"], merged["time"]))
-    n = order.size
     names = np.asarray(sensor_names, dtype=object)
     data = {
         "time": merged["time"][order],
@@ -141,10 +230,12 @@ def _plot_frame(parts: list[dict[str, np.ndarray]], sensor_names: list[str]) -> 
         "mode3a": pd.array(merged["mode3a"][order], dtype="str"),
         "mode_c_ft": merged["mode_c_ft"][order],
         "mode_s": pd.array(merged["mode_s"][order], dtype="str"),
-        "iff": pd.array(np.full(n, None, dtype=object), dtype="str"),
+        "iff": pd.array(merged["iff"][order], dtype="str"),
         "truth_id": pd.array(merged["truth_id"][order], dtype="str"),
     }
-    return pd.DataFrame({name: data[name] for name in PLOT_COLUMNS}, copy=False)
+    column_names = PLOT_COLUMNS + (PLATFORM_COLUMNS if airborne else ())
+    data.update({name: merged[name][order] for name in PLATFORM_COLUMNS if airborne})
+    return pd.DataFrame({name: data[name] for name in column_names}, copy=False)
 
 
 def _truth_frame(truth: TruthTable, traj: TrajectorySet) -> pd.DataFrame:

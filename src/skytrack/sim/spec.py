@@ -1,5 +1,6 @@
 """Scenario dataclasses: the validated sections of a scenario file (legs, targets, radar
-simulation parameters with their clutter patches, random traffic), shared by the loader
+simulation parameters with their clutter patches, IFF interrogator and airborne carrier,
+random traffic), shared by the loader
 (:mod:`skytrack.sim.scenario`), the traffic generator (:mod:`skytrack.sim.traffic`), the
 trajectories and the radar model.
 
@@ -13,7 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 GRAVITY_MPS2 = 9.80665
-SCENARIO_TYPES = ("radar-2d", "radar-3d")
+SCENARIO_TYPES = ("radar-2d", "radar-3d", "radar-airborne")
+#: true IFF status of a target (spec 003 R18): the index is the code of skytrack.core.plots.IFF_VALUES
+TARGET_IFF_STATUSES = ("friend", "foe")
 LEG_TYPES = ("straight", "turn", "climb", "accelerate", "singer", "waypoints", "land")
 RESERVED_MODE3A = ("7000", "7500", "7600", "7700")
 
@@ -91,6 +94,10 @@ class TargetSpec:
     transponder: bool = False
     mode3a: str | None = None
     icao24: str | None = None
+    iff: str | None = None
+    """true IFF status ("friend" or "foe"); None = no IFF transponder (never replies)"""
+    iff_p_reply: float | None = None
+    """this target's probability of an IFF reply; None = the radar's ``p_reply``"""
 
 
 @dataclass(frozen=True)
@@ -110,6 +117,18 @@ class ClutterPatch:
 
 
 @dataclass(frozen=True)
+class IffSpec:
+    """IFF interrogator of a radar (spec 003 R16, R18): reply and error probabilities and the
+    simulator's interrogation policy ("always", "never" or closed time windows in seconds)."""
+
+    p_reply: float = 0.9
+    p_flip: float = 0.0
+    p_code: float = 0.0
+    false_reply_p: float = 0.0
+    interrogate: str | tuple[tuple[float, float], ...] = "always"
+
+
+@dataclass(frozen=True)
 class RadarSimParams:
     """Simulation-only parameters of one radar (not part of sensors.json)."""
 
@@ -125,6 +144,10 @@ class RadarSimParams:
     """probability that a false plot carries a random Mode 3/A code"""
     clutter_p_mode_c: float = 0.0
     """probability that a false plot carries a random Mode C height"""
+    iff: IffSpec | None = None
+    """IFF interrogator; None = no IFF replies (the plots' iff column stays empty)"""
+    carrier: TargetSpec | None = None
+    """the flight of a radar-airborne sensor's carrier (same keys and legs as a target)"""
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,9 @@ alt_m, visible.  ``visible`` is true when at least one sensor covers the target
 (:func:`skytrack.sim.radar.in_coverage`).  A target that lands ends at touchdown (its
 last row).  After its last leg a target is ended at the first sample where it is outside
 every sensor's maximum range and opening from every sensor: flying straight it cannot
-come back, so it has left the coverage for good.
+come back, so it has left the coverage for good.  An airborne radar judges from its
+carrier's position at the sample time, and only once the carrier too flies its last
+straight leg (the relative motion is then a straight line as well).
 Sampling is vectorised over all (target, time) rows, in chunks to bound memory.
 """
 
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skytrack.geo.sensors import SensorSet
+from skytrack.sim.carrier import Carriers
 from skytrack.sim.radar import TruthSamples, in_coverage, polar_view
 from skytrack.sim.trajectories import TrajectorySet
 
@@ -52,8 +55,11 @@ def sample_times(start: np.ndarray, end: np.ndarray, step: float) -> tuple[np.nd
     return target, time
 
 
-def sample_truth(traj: TrajectorySet, sensors: SensorSet, step: float, progress=None) -> TruthTable:
-    """Sample all trajectories; ends targets that left the coverage (updates ``traj.end_time``)."""
+def sample_truth(traj: TrajectorySet, sensors: SensorSet, step: float, progress=None,
+                 carriers: Carriers | None = None) -> TruthTable:
+    """Sample all trajectories; ends targets that left the coverage (updates ``traj.end_time``).
+
+    ``carriers``: the flights of the airborne radars (required when there are any)."""
     target, time = sample_times(traj.start_time, traj.end_time, step)
     n = target.size
     position = np.empty((n, 3))
@@ -69,6 +75,13 @@ def sample_truth(traj: TrajectorySet, sensors: SensorSet, step: float, progress=
         velocity[rows] = np.stack([state["vx"], state["vy"], state["vz"]], axis=1)
         lat[rows], lon[rows], alt[rows] = state["lat"], state["lon"], state["alt_m"]
         for sensor in sensors.sensors:
+            if sensor.is_moving:
+                own_position, own_velocity, own_alt = carriers.state(sensor.name, time[rows])
+                r, _, el, rdot, ground = polar_view(sensor, position[rows], velocity[rows], own_position, own_velocity)
+                visible[rows] |= in_coverage(sensor, r, el, ground, alt[rows], own_alt)
+                straight = time[rows] >= carriers.legs_end_time(sensor.name)
+                gone[rows] &= (r > sensor.max_range_m) & (rdot > 0.0) & straight
+                continue
             r, _, el, rdot, ground = polar_view(sensor, position[rows], velocity[rows])
             visible[rows] |= in_coverage(sensor, r, el, ground, alt[rows])
             gone[rows] &= (r > sensor.max_range_m) & (rdot > 0.0)
