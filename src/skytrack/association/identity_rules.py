@@ -4,8 +4,8 @@ Every hypothesis "plot k belongs to track r" is scored in the log domain from th
 residual ``nu`` and innovation covariance ``S`` (R7) and the identity features (R8,
 :mod:`skytrack.association.features`):
 
-* ``d^2 = nu^T S^-1 nu`` and ``ln det S = 2 sum ln L_ii`` from one batched Cholesky factor
-  ``S = L L^T``; ``innovation_cov="diagonal"`` replaces ``S`` by ``diag(S)`` in both (the
+* ``d^2 = nu^T S^-1 nu = |L^-1 nu|^2`` and ``ln det S = 2 sum ln L_ii`` from one batched
+  Cholesky factor ``S = L L^T`` per track (:func:`whitening`), shared by all its plots; ``innovation_cov="diagonal"`` replaces ``S`` by ``diag(S)`` in both (the
   paper's literal product forms (9), (13); gap G3);
 * (D1) ``ln p = -d^2/2 - n_c ln(2 pi)/2 - ln det S / 2`` — the Gaussian likelihood (8);
 * (D2) ``ln mu_coord = -d^2/2`` — the coordinate membership (14);
@@ -35,6 +35,7 @@ Determinism (R12): on an exact tie a track beats ``new`` and the lower track id 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,6 +52,7 @@ LOG_2PI = math.log(2.0 * math.pi)
 NEW = -1
 
 
+@lru_cache(maxsize=64)
 def gate_gamma(n_c: int, p_gate: float = 0.99) -> float:
     """``gamma``: the chi-square quantile of ``n_c`` degrees of freedom at ``p_gate`` (R9)."""
     return float(chi2_quantile(p_gate, n_c))
@@ -108,20 +110,22 @@ def feature_logs(config: RuleConfig, track_iff, plot_iff, track_code, plot_code)
     return zero, zero
 
 
-def coordinate_terms(nu: np.ndarray, S: np.ndarray, innovation_cov: str = "full",
-                     track_id: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``d^2`` and ``ln det S`` per pair from one batched Cholesky factorisation (R7).
-
-    ``nu[K, m]``, ``S[K, m, m]``.  A covariance that is not positive definite is an error
-    naming its track (``track_id`` per pair, else the pair's row)."""
-    nu = np.asarray(nu, dtype=float)
+def whitening(S: np.ndarray, innovation_cov: str = "full",
+              track_id: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(W, ln det S)`` per covariance ``S[K, m, m]`` with ``W = L^-1`` from the Cholesky factor
+    ``S = L L^T`` (R7), so that ``d^2 = |W nu|^2`` for any residual of that track: one factorisation
+    per track serves all its plots.  ``innovation_cov="diagonal"`` uses ``diag(S)``.  A covariance
+    that is not positive definite is an error naming its track (``track_id``, else its row)."""
     S = np.asarray(S, dtype=float)
     if innovation_cov == "diagonal":
         var = np.diagonal(S, axis1=-2, axis2=-1)
         bad = ~(var > 0.0).all(axis=-1)
         if bad.any():
             _not_positive_definite(np.flatnonzero(bad)[0], track_id)
-        return np.sum(nu * nu / var, axis=-1), np.sum(np.log(var), axis=-1)
+        W = np.zeros(S.shape)
+        idx = np.arange(S.shape[-1])
+        W[..., idx, idx] = 1.0 / np.sqrt(var)
+        return W, np.sum(np.log(var), axis=-1)
     if innovation_cov != "full":
         raise ValueError(f"innovation_cov must be one of {', '.join(INNOVATION_COVARIANCES)}, got {innovation_cov!r}")
     try:
@@ -129,9 +133,22 @@ def coordinate_terms(nu: np.ndarray, S: np.ndarray, innovation_cov: str = "full"
     except np.linalg.LinAlgError:
         rows = [k for k in range(len(S)) if not _is_positive_definite(S[k])]
         _not_positive_definite(rows[0] if rows else 0, track_id)
-    y = np.linalg.solve(L, nu[..., None])[..., 0]
-    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-    return np.sum(y * y, axis=-1), logdet
+    eye = np.broadcast_to(np.eye(S.shape[-1]), S.shape)
+    W = np.linalg.solve(L, eye)
+    return W, 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+
+
+def mahalanobis(W: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """``d^2 = |W nu|^2`` with ``W`` of :func:`whitening` (broadcast over leading axes)."""
+    y = np.einsum("...ij,...j->...i", W, nu)
+    return np.einsum("...i,...i->...", y, y)
+
+
+def coordinate_terms(nu: np.ndarray, S: np.ndarray, innovation_cov: str = "full",
+                     track_id: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``d^2`` and ``ln det S`` per pair ``nu[K, m]``, ``S[K, m, m]`` (R7; :func:`whitening`)."""
+    W, logdet = whitening(S, innovation_cov, track_id)
+    return mahalanobis(W, np.asarray(nu, dtype=float)), logdet
 
 
 def _is_positive_definite(S: np.ndarray) -> bool:
@@ -189,7 +206,10 @@ def score_pairs(config: RuleConfig, d2: np.ndarray, logdet: np.ndarray, n_c: np.
 
 def gamma_of(n_c: np.ndarray | int, p_gate: float) -> np.ndarray:
     """``gamma`` per entry of ``n_c``."""
-    return np.asarray(chi2_quantile(p_gate, np.asarray(n_c)), dtype=float)
+    n_c = np.asarray(n_c)
+    if n_c.size and (n_c == n_c.flat[0]).all():
+        return np.full(n_c.shape, gate_gamma(int(n_c.flat[0]), float(p_gate)))
+    return np.asarray(chi2_quantile(p_gate, n_c), dtype=float)
 
 
 def new_object_score(config: RuleConfig, n_c: np.ndarray | int) -> np.ndarray:

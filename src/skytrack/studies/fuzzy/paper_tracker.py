@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skytrack.association.features import UNDETERMINED
-from skytrack.association.identity_rules import (NEW, RuleConfig, coordinate_terms, decide_global, feature_logs,
-                                                 gate_gamma, new_object_score, score_pairs)
+from skytrack.association.identity_rules import (NEW, RuleConfig, decide_global, feature_logs, gate_gamma,
+                                                 mahalanobis, new_object_score, score_pairs, whitening)
 from skytrack.filters.airborne_ekf import DEFAULT_SIGMA_V0, initiate_from_plot, predict
 from skytrack.filters.ekf import update as ekf_update_arrays
 from skytrack.models.airborne import airborne_measurement, degenerate_pairs, wrap_residual
@@ -115,12 +115,18 @@ class _Bank:
         self.born = np.zeros((runs, capacity), dtype=bool)
         self.next_id = np.ones(runs, dtype=np.int64)
 
-    def free_slots(self, runs: np.ndarray) -> np.ndarray:
-        """A free slot in each of ``runs`` (distinct runs), growing the arrays when one is full."""
-        full = self.alive[runs].all(axis=1)
-        if full.any():
+    def allocate(self, runs: np.ndarray) -> np.ndarray:
+        """One free slot per entry of ``runs`` (a run may appear several times: distinct slots),
+        growing the arrays until every run has room."""
+        order = np.argsort(runs, kind="stable")
+        sorted_runs = runs[order]
+        first = np.searchsorted(sorted_runs, sorted_runs, side="left")
+        rank = np.empty(len(runs), dtype=np.int64)
+        rank[order] = np.arange(len(runs)) - first
+        while (self.alive[runs].sum(axis=1) + rank >= self.alive.shape[1]).any():
             self._grow()
-        return np.argmin(self.alive[runs], axis=1)
+        free_first = np.argsort(self.alive[runs], axis=1, kind="stable")
+        return free_first[np.arange(len(runs)), rank]
 
     def _grow(self) -> None:
         runs, capacity = self.alive.shape
@@ -154,6 +160,7 @@ class PaperTracker:
         self._gamma = gate_gamma(n_c, config.rule.p_gate)
         self._new_score = float(new_object_score(config.rule, n_c))
         self._noise = np.asarray(plots.noise, dtype=float)
+        self._h = np.zeros((0, 0, n_c))
         for k in range(scans):
             if k:
                 dt = plots.time[k] - plots.time[k - 1]
@@ -165,7 +172,8 @@ class PaperTracker:
             bank.born[:] = False
             z, valid = plots.z[:, k], plots.valid[:, k]
             own_p, own_v = plots.own_p[:, k], plots.own_v[:, k]
-            terms = self._pair_terms(bank, z, own_p, own_v, out)
+            self._refresh(bank, own_p, own_v)
+            terms = self._pair_terms(z)
             requested = self._interrogate(bank, terms, valid)
             iff = np.where(requested, plots.reply_iff[:, k], -1)
             code = np.where(requested, plots.reply_code[:, k], -1)
@@ -173,20 +181,21 @@ class PaperTracker:
             if config.rule.mode == "greedy":
                 for j in range(slots):
                     if j:
-                        terms = self._pair_terms(bank, z[:, j:j + 1], own_p, own_v, out)
-                        score, hypothesis = self._scores(bank, terms, iff[:, j:j + 1], code[:, j:j + 1])
+                        terms = self._pair_terms(z[:, j:j + 1])
                     else:
-                        score, hypothesis = self._scores(bank, terms, iff, code)
-                        score, hypothesis = score[:, :1], hypothesis[:, :1]
-                    choice = self._best(bank, score[:, 0], hypothesis[:, 0] & valid[:, j, None])
-                    self._apply(bank, k, j, choice, valid[:, j], z[:, j], own_p, own_v, iff[:, j], code[:, j], out)
+                        terms = tuple(a[:, :1] for a in terms)
+                    score, hypothesis = self._scores(bank, terms, iff[:, j:j + 1], code[:, j:j + 1],
+                                                     valid[:, j:j + 1], out)
+                    choice = self._best(bank, score[:, 0], hypothesis[:, 0])
+                    runs_j = np.flatnonzero(valid[:, j])
+                    changed = self._apply(bank, k, runs_j, np.full(len(runs_j), j), choice[runs_j], z, own_p, own_v,
+                                          iff, code, out)
+                    self._refresh(bank, own_p, own_v, *changed)  # the next plot sees the updated tracks
             else:
-                score, hypothesis = self._scores(bank, terms, iff, code)
-                hypothesis &= valid[:, :, None]
+                score, hypothesis = self._scores(bank, terms, iff, code, valid, out)
                 choices = self._global(bank, score, hypothesis)
-                for j in range(slots):
-                    self._apply(bank, k, j, choices[:, j], valid[:, j], z[:, j], own_p, own_v, iff[:, j], code[:, j],
-                                out)
+                runs_k, plots_k = np.nonzero(valid)  # sorted by run, as _apply needs
+                self._apply(bank, k, runs_k, plots_k, choices[runs_k, plots_k], z, own_p, own_v, iff, code, out)
             missed = bank.alive & ~bank.hit & ~bank.born
             bank.misses[missed] += 1
             bank.alive &= bank.misses < config.max_misses
@@ -194,35 +203,45 @@ class PaperTracker:
 
     # ------------------------------------------------------------------ scoring
 
-    def _pair_terms(self, bank: _Bank, z: np.ndarray, own_p: np.ndarray, own_v: np.ndarray, out: RunDecisions):
-        """``d^2``, ``ln det S`` ``[R, M, K]`` of every (plot, track slot) pair and the pairs that may
-        be hypotheses (live track, not overhead of the own-ship)."""
-        runs, capacity = bank.alive.shape
-        slots, m = z.shape[1], z.shape[-1]
-        x = bank.x.reshape(-1, 6)
-        p_o = np.repeat(own_p, capacity, axis=0)
-        v_o = np.repeat(own_v, capacity, axis=0)
-        overhead = degenerate_pairs(x, p_o)
-        usable = bank.alive.reshape(-1) & ~overhead
-        out.degenerate_pairs += int((bank.alive.reshape(-1) & overhead).sum()) * slots
+    def _refresh(self, bank: _Bank, own_p: np.ndarray, own_v: np.ndarray, runs: np.ndarray | None = None,
+                 slots: np.ndarray | None = None) -> None:
+        """Per track slot: predicted measurement ``h``, the whitening ``W`` of its innovation covariance
+        and ``ln det S`` (one Cholesky factor per track, R7), and whether it may be a hypothesis (live,
+        not overhead of the own-ship, R3).  All slots, or only ``(runs, slots)``."""
+        m = self._noise.shape[0]
+        if runs is None or self._h.shape[1] != bank.alive.shape[1]:
+            runs, slots = (a.reshape(-1) for a in np.indices(bank.alive.shape))
+            capacity = bank.alive.shape
+            self._h = np.zeros(capacity + (m,))
+            self._W = np.zeros(capacity + (m, m))
+            self._logdet = np.zeros(capacity)
+            self._usable = np.zeros(capacity, dtype=bool)
+        if len(runs) == 0:
+            return
+        x, P = bank.x[runs, slots], bank.P[runs, slots]
+        p_o, v_o = own_p[runs], own_v[runs]
+        usable = bank.alive[runs, slots] & ~degenerate_pairs(x, p_o)
         parked = np.concatenate([p_o + _PARKED_OFFSET, np.zeros_like(p_o)], axis=1)
-        x_eval = np.where(usable[:, None], x, parked)
-        h, H = airborne_measurement(x_eval, p_o, v_o, with_range_rate=m == 4)
-        S = H @ bank.P.reshape(-1, 6, 6) @ np.swapaxes(H, -1, -2) + self._noise
-        S = np.where(usable[:, None, None], S, np.eye(m))
-        nu = wrap_residual(z[:, :, None, :] - h.reshape(runs, 1, capacity, m))
-        d2, logdet = coordinate_terms(nu.reshape(-1, m), np.broadcast_to(
-            S.reshape(runs, 1, capacity, m, m), (runs, slots, capacity, m, m)).reshape(-1, m, m),
-            self.config.rule.innovation_cov)
-        shape = (runs, slots, capacity)
-        return d2.reshape(shape), logdet.reshape(shape), np.broadcast_to(usable.reshape(runs, 1, capacity), shape)
+        h, H = airborne_measurement(np.where(usable[:, None], x, parked), p_o, v_o, with_range_rate=m == 4)
+        S = np.where(usable[:, None, None], H @ P @ np.swapaxes(H, -1, -2) + self._noise, np.eye(m))
+        W, logdet = whitening(S, self.config.rule.innovation_cov, bank.track_id[runs, slots])
+        self._h[runs, slots], self._W[runs, slots] = h, W
+        self._logdet[runs, slots], self._usable[runs, slots] = logdet, usable
 
-    def _scores(self, bank: _Bank, terms, iff: np.ndarray, code: np.ndarray):
+    def _pair_terms(self, z: np.ndarray):
+        """``d^2``, ``ln det S`` ``[R, M, K]`` of every (plot, track slot) pair and whether the pair
+        may be a hypothesis, from the per-track terms of :meth:`_refresh`."""
+        nu = wrap_residual(z[:, :, None, :] - self._h[:, None])
+        d2 = mahalanobis(self._W[:, None], nu)
+        return d2, np.broadcast_to(self._logdet[:, None], d2.shape), np.broadcast_to(self._usable[:, None], d2.shape)
+
+    def _scores(self, bank: _Bank, terms, iff: np.ndarray, code: np.ndarray, valid: np.ndarray, out: RunDecisions):
         d2, logdet, usable = terms
+        out.degenerate_pairs += int((bank.alive[:, None, :] & ~usable & valid[:, :, None]).sum())
         ln_g, ln_n = feature_logs(self.config.rule, bank.iff[:, None, :], iff[:, :, None], bank.code[:, None, :],
                                   code[:, :, None])
         scores = score_pairs(self.config.rule, d2, logdet, self._noise.shape[0], ln_g, ln_n)
-        return scores.score, scores.hypothesis & usable
+        return scores.score, scores.hypothesis & usable & valid[:, :, None]
 
     def _interrogate(self, bank: _Bank, terms, valid: np.ndarray) -> np.ndarray:
         policy = self.config.iff_policy
@@ -261,39 +280,39 @@ class PaperTracker:
 
     # ------------------------------------------------------------------ updates
 
-    def _apply(self, bank: _Bank, k: int, j: int, choice: np.ndarray, valid: np.ndarray, z: np.ndarray,
-               own_p: np.ndarray, own_v: np.ndarray, iff: np.ndarray, code: np.ndarray, out: RunDecisions) -> None:
-        """Update the chosen tracks with plot slot ``j`` (or start new ones) and record the decision."""
-        update = np.flatnonzero(valid & (choice >= 0))
-        if len(update):
-            slot = choice[update]
-            result = self._update(bank.x[update, slot], bank.P[update, slot], z[update], own_p[update], own_v[update])
-            bank.x[update, slot], bank.P[update, slot] = result
-            bank.misses[update, slot] = 0
-            bank.hit[update, slot] = True
-            self._take_features(bank, update, slot, iff[update], code[update])
-            out.track_id[update, k, j] = bank.track_id[update, slot]
-        start = np.flatnonzero(valid & (choice == NEW))
+    def _apply(self, bank: _Bank, k: int, runs: np.ndarray, plots: np.ndarray, choice: np.ndarray, z: np.ndarray,
+               own_p: np.ndarray, own_v: np.ndarray, iff: np.ndarray, code: np.ndarray,
+               out: RunDecisions) -> tuple[np.ndarray, np.ndarray]:
+        """Apply the decisions ``choice`` (a track slot or NEW) of plots ``(runs, plots)`` of scan ``k``
+        (``z``, ``iff``, ``code`` ``[R, M, ...]``): update the chosen tracks or start new ones, and record
+        the decisions.  Each track takes at most one of these plots.  Returns the (runs, slots) changed."""
+        update = choice >= 0
+        slot = np.where(update, choice, 0)
+        start = np.flatnonzero(~update)
         if len(start):
-            slot = bank.free_slots(start)
-            x0, P0 = initiate_from_plot(z[start], own_p[start], own_v[start] if z.shape[-1] == 4 else None,
-                                        self._noise, self.config.sigma_v0)
-            bank.x[start, slot], bank.P[start, slot] = x0, P0
-            bank.alive[start, slot] = True
-            bank.misses[start, slot] = 0
-            bank.track_id[start, slot] = bank.next_id[start]
-            bank.next_id[start] += 1
-            bank.iff[start, slot] = UNDETERMINED
-            bank.code[start, slot] = -1
-            self._take_features(bank, start, slot, iff[start], code[start])
-            out.track_id[start, k, j] = bank.track_id[start, slot]
-            out.started[start, k, j] = True
-            bank.born[start, slot] = True
-        rows = np.flatnonzero(valid)
-        if len(rows):
-            slot_index = np.argmax(bank.track_id[rows] == out.track_id[rows, k, j][:, None], axis=1)
-            out.track_iff[rows, k, j] = bank.iff[rows, slot_index]
-            out.track_code[rows, k, j] = bank.code[rows, slot_index]
+            slot[start] = bank.allocate(runs[start])
+        r, j, s = runs[update], plots[update], slot[update]
+        if len(r):
+            bank.x[r, s], bank.P[r, s] = self._update(bank.x[r, s], bank.P[r, s], z[r, j], own_p[r], own_v[r])
+            bank.misses[r, s] = 0
+            bank.hit[r, s] = True
+        if len(start):
+            r, j, s = runs[start], plots[start], slot[start]
+            bank.x[r, s], bank.P[r, s] = initiate_from_plot(z[r, j], own_p[r], own_v[r] if z.shape[-1] == 4 else None,
+                                                            self._noise, self.config.sigma_v0)
+            bank.alive[r, s] = True
+            bank.born[r, s] = True
+            bank.misses[r, s] = 0
+            bank.track_id[r, s] = bank.next_id[r] + np.arange(len(r)) - np.searchsorted(r, r)  # r is sorted
+            np.add.at(bank.next_id, r, 1)
+            bank.iff[r, s] = UNDETERMINED
+            bank.code[r, s] = -1
+            out.started[r, k, j] = True
+        self._take_features(bank, runs, slot, iff[runs, plots], code[runs, plots])
+        out.track_id[runs, k, plots] = bank.track_id[runs, slot]
+        out.track_iff[runs, k, plots] = bank.iff[runs, slot]
+        out.track_code[runs, k, plots] = bank.code[runs, slot]
+        return runs, slot
 
     def _update(self, x, P, z, own_p, own_v):
         h, H = airborne_measurement(x, own_p, own_v, with_range_rate=z.shape[-1] == 4)
