@@ -4,7 +4,9 @@
 * ``fuzzy-regions`` — E2, decision regions along the TV9 line (:mod:`skytrack.studies.fuzzy.regions`);
 * ``fuzzy-gate`` — E3, the effective gate, Monte Carlo vs F_χ²₄(γ + 2 ln Π)
   (:mod:`skytrack.studies.fuzzy.gate`);
-* ``fuzzy-crossing`` — E4, added to this file by the E4 work (see the marked section below).
+* ``fuzzy-crossing`` — E4, crossing targets with IFF errors (:mod:`skytrack.studies.fuzzy.crossing`;
+  sweeps S1-S4 or list-valued options, ``--methods``; ``--check`` runs the CI-sized configurations
+  and holds assertions (i)-(iv) and the expected results Q1-Q5).
 
 Every command takes ``--out`` (output folder), ``--seed`` and ``--check``; it writes a CSV
 and a PNG, prints a rich summary table and the spec's expected values with their verdicts,
@@ -148,10 +150,101 @@ def fuzzy_gate(
 
 
 # --------------------------------------------------------------------------- E4 fuzzy-crossing
-# Reserved for the E4 study (crossing targets with IFF errors, spec 003 §6 E4 and R20:
-# list-valued sweep options, --methods, CSV + PNG, progress bar over the runs).  Its command
-# function goes here and its registration into register_fuzzy_studies below; the metrics are
-# skytrack.analysis.association_metrics (R19).
+
+ListOption = Annotated[str | None, typer.Option(help="Comma-separated values (a sweep); default: the reference value.")]
+
+
+def fuzzy_crossing(
+    out: OutOption = Path("study-fuzzy-crossing"),
+    seed: Annotated[int, typer.Option("--seed", help="Run i uses SeedSequence(seed).spawn(runs)[i].")] = 1,
+    runs: Annotated[int | None, typer.Option("--runs", help="Runs per configuration (default 200; 100 with --check).")] = None,
+    methods: Annotated[str, typer.Option("--methods", help="Methods: nn, ml, fuzzy, fuzzy-global, crisp.")] =
+    "nn,ml,fuzzy,fuzzy-global,crisp",
+    sweeps: Annotated[str, typer.Option("--sweeps", help="Sweeps of spec 003 §6: S1 (policy), S2 (IFF errors), S3 "
+                                        "(beta x q), S4 (missing_iff); ignored when a list option is given.")] =
+    "S1,S2,S3,S4",
+    beta_deg: ListOption = None, q: ListOption = None, p_flip: ListOption = None, p_code: ListOption = None,
+    p_reply: ListOption = None,
+    policy: Annotated[str | None, typer.Option(help="Interrogation policies: track, always, never (comma-separated).")]
+    = None,
+    missing_iff: Annotated[str | None, typer.Option(help="undetermined and/or neutral (comma-separated).")] = None,
+    check: Annotated[bool, typer.Option("--check", help="Run the spec's CI-sized configurations and exit 1 unless "
+                                        "assertions (i)-(iv) and Q1-Q5 hold.")] = False,
+) -> None:
+    """E4: crossing targets of different nationality, IFF errors and interrogation policies (spec 003 §6)."""
+    import itertools
+    from dataclasses import replace
+
+    import pandas as pd
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from skytrack.studies.fuzzy import crossing, crossing_checks
+    from skytrack.studies.fuzzy.crossing_figure import crossing_figure
+
+    method_list = [m.strip() for m in methods.split(",") if m.strip()]
+    unknown = [m for m in method_list if m not in crossing.METHODS]
+    if unknown or not method_list:
+        _fail(f"--methods: unknown {', '.join(unknown) or '(none given)'}; methods are {', '.join(crossing.METHODS)}")
+    runs = runs if runs is not None else (100 if check else 200)
+    if runs < 1:
+        _fail(f"--runs must be >= 1, got {runs}")
+    lists = {"beta_deg": beta_deg, "q": q, "p_flip": p_flip, "p_code": p_code, "p_reply": p_reply}
+    values = {key: _float_list(f"--{key.replace('_', '-')}", text) for key, text in lists.items() if text}
+    for key, text, allowed in (("policy", policy, ("track", "always", "never")),
+                               ("missing_iff", missing_iff, ("undetermined", "neutral"))):
+        if text:
+            values[key] = tuple(v.strip() for v in text.split(",") if v.strip())
+            bad = [v for v in values[key] if v not in allowed]
+            if bad:
+                _fail(f"--{key.replace('_', '-')}: unknown {', '.join(bad)}; allowed: {', '.join(allowed)}")
+    if check:
+        cases = crossing_checks.check_cases()
+        method_list = list(crossing.METHODS)
+    elif values:
+        keys = list(values)
+        cases = [replace(crossing.CrossingCase(sweep="custom"), **dict(zip(keys, combo)))
+                 for combo in itertools.product(*(values[k] for k in keys))]
+    else:
+        try:
+            cases = crossing.sweep_cases([s.strip() for s in sweeps.split(",") if s.strip()])
+        except ValueError as error:
+            _fail(str(error))
+    out.mkdir(parents=True, exist_ok=True)
+    kept: list = []
+    tables = []
+    columns = (TextColumn("[bold]fuzzy-crossing"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=error_console, transient=False) as display:
+        task = display.add_task("runs", total=len(cases) * len(method_list))
+        for case in cases:
+            decisions: dict = {}
+            tables.append(crossing.run_case(case, method_list, runs, seed, lambda n: display.advance(task, n),
+                                            keep=decisions if check else None))
+            kept.append((case, decisions))
+        if check:  # TV13 (c) also across p_reply: the coordinate rules on a run set with p_reply = 0.5
+            decisions = {}
+            crossing.run_case(replace(crossing.CrossingCase(sweep="check"), policy="always", p_reply=0.5),
+                              ("nn", "ml"), runs, seed, keep=decisions)
+            kept.append((crossing.CrossingCase(), decisions))
+    table = pd.concat(tables, ignore_index=True)
+    csv_path, png_path = out / "fuzzy_crossing.csv", out / "fuzzy_crossing.png"
+    table.to_csv(csv_path, index=False)
+    crossing_figure(table, png_path)
+    summary = Table(title=f"fuzzy-crossing: CAR / swap / broken ({runs} runs per configuration, seed {seed})")
+    for column in ("sweep", "policy", "errors flip/code", "β", "q", "missing IFF", *method_list):
+        summary.add_column(column, justify="right")
+    settings = ["sweep", "policy", "p_flip", "p_code", "beta_deg", "q", "missing_iff", "p_reply"]
+    for _, group in table.groupby(settings, sort=False):
+        first = group.iloc[0]
+        cells = {row.method: f"{row.car:.3f}/{row.swap:.3f}/{row.broken:.3f}" for row in group.itertuples()}
+        summary.add_row(first.sweep, first.policy, f"{first.p_flip:g}/{first.p_code:g}", f"{first.beta_deg:g}",
+                        f"{first.q:g}", first.missing_iff, *(cells.get(m, "–") for m in method_list))
+    console.print(summary)
+    if check:
+        checks = crossing_checks.ci_checks(table, crossing_checks.decisions_identical(kept))
+        checks += crossing_checks.qualitative_checks(table)
+        _finish("fuzzy-crossing", checks, [csv_path, png_path], check)
+    else:
+        console.print(f"wrote {csv_path}, {png_path}")
 
 
 def register_fuzzy_studies(app: typer.Typer) -> None:
@@ -159,4 +252,4 @@ def register_fuzzy_studies(app: typer.Typer) -> None:
     app.command("fuzzy-fig2")(fuzzy_fig2)
     app.command("fuzzy-regions")(fuzzy_regions)
     app.command("fuzzy-gate")(fuzzy_gate)
-    # E4: app.command("fuzzy-crossing")(fuzzy_crossing) -- added with the E4 study
+    app.command("fuzzy-crossing")(fuzzy_crossing)

@@ -3,7 +3,7 @@
 :func:`check_cases` lists the configurations the checks read (the reference scenario with
 beta = 5 deg, q = 25: policies ``track`` and ``always``, IFF error rates 0-0.3, and beta in {5, 10}
 x q in {1, 25} for Q3); :func:`ci_checks` and :func:`qualitative_checks` return
-:class:`Check` rows (name, holds, the numbers behind it).  (iv) is TV13 (c): the ``nn`` and ``ml``
+:class:`~skytrack.studies.fuzzy.common.Check` rows (condition, the numbers behind it, its label, verdict).  (iv) is TV13 (c): the ``nn`` and ``ml``
 decisions are bit-identical across every IFF setting and policy.
 
 The spec's assertions carry their own margins.  Q1-Q5 are statements about directions ("lower
@@ -17,22 +17,20 @@ and not less at beta = 10 deg (where, at q = 1, no method swaps in this geometry
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 
+from skytrack.studies.fuzzy.common import Check
 from skytrack.studies.fuzzy.crossing import ERROR_RATES, CrossingCase, cell
 
 #: margin, in standard errors of the difference, of the qualitative checks
 SE_MARGIN = 2.0
 
 
-@dataclass
-class Check:
-    name: str
-    holds: bool
-    detail: str
+def _verdict(name: str, holds, measured: str) -> Check:
+    """A verdict row: ``name`` is "<label> <condition>", e.g. "(i) always, errors 0: swap(crisp) <= 0.05"."""
+    label, _, condition = name.partition(" ")
+    return Check(condition, measured, f"spec 003 §6 {label}", bool(holds))
 
 
 def check_cases() -> list[CrossingCase]:
@@ -60,23 +58,23 @@ def ci_checks(table: pd.DataFrame, identical_decisions: bool) -> list[Check]:
     a2 = {m: _at(table, m, "always", 0.2) for m in ("nn", "fuzzy", "crisp")}
     t0 = {m: _at(table, m) for m in ("nn", "fuzzy", "fuzzy-global")}
     return [
-        Check("(i) always, errors 0: swap(fuzzy-global) <= 0.05", a0["fuzzy-global"].swap <= 0.05,
+        _verdict("(i) always, errors 0: swap(fuzzy-global) <= 0.05", a0["fuzzy-global"].swap <= 0.05,
               f"{a0['fuzzy-global'].swap:.3f}"),
-        Check("(i) always, errors 0: swap(crisp) <= 0.05", a0["crisp"].swap <= 0.05, f"{a0['crisp'].swap:.3f}"),
-        Check("(i) always, errors 0: swap(nn) >= 0.12", a0["nn"].swap >= 0.12, f"{a0['nn'].swap:.3f}"),
-        Check("(i) always, errors 0: CAR(fuzzy) >= CAR(nn) + 0.08", a0["fuzzy"].car >= a0["nn"].car + 0.08,
+        _verdict("(i) always, errors 0: swap(crisp) <= 0.05", a0["crisp"].swap <= 0.05, f"{a0['crisp'].swap:.3f}"),
+        _verdict("(i) always, errors 0: swap(nn) >= 0.12", a0["nn"].swap >= 0.12, f"{a0['nn'].swap:.3f}"),
+        _verdict("(i) always, errors 0: CAR(fuzzy) >= CAR(nn) + 0.08", a0["fuzzy"].car >= a0["nn"].car + 0.08,
               f"{a0['fuzzy'].car:.3f} vs {a0['nn'].car:.3f}"),
-        Check("(ii) always, errors 0.2: CAR(crisp) <= CAR(nn) - 0.05", a2["crisp"].car <= a2["nn"].car - 0.05,
+        _verdict("(ii) always, errors 0.2: CAR(crisp) <= CAR(nn) - 0.05", a2["crisp"].car <= a2["nn"].car - 0.05,
               f"{a2['crisp'].car:.3f} vs {a2['nn'].car:.3f}"),
-        Check("(ii) always, errors 0.2: broken(crisp) >= 0.3", a2["crisp"].broken >= 0.3, f"{a2['crisp'].broken:.3f}"),
-        Check("(ii) always, errors 0.2: CAR(fuzzy) >= CAR(crisp) + 0.1", a2["fuzzy"].car >= a2["crisp"].car + 0.1,
+        _verdict("(ii) always, errors 0.2: broken(crisp) >= 0.3", a2["crisp"].broken >= 0.3, f"{a2['crisp'].broken:.3f}"),
+        _verdict("(ii) always, errors 0.2: CAR(fuzzy) >= CAR(crisp) + 0.1", a2["fuzzy"].car >= a2["crisp"].car + 0.1,
               f"{a2['fuzzy'].car:.3f} vs {a2['crisp'].car:.3f}"),
-        Check("(iii) track, errors 0: |swap(fuzzy) - swap(nn)| <= 0.1", abs(t0["fuzzy"].swap - t0["nn"].swap) <= 0.1,
+        _verdict("(iii) track, errors 0: |swap(fuzzy) - swap(nn)| <= 0.1", abs(t0["fuzzy"].swap - t0["nn"].swap) <= 0.1,
               f"{t0['fuzzy'].swap:.3f} vs {t0['nn'].swap:.3f}"),
-        Check("(iii) track, errors 0: swap(fuzzy-global) <= swap(fuzzy) + 0.03",
+        _verdict("(iii) track, errors 0: swap(fuzzy-global) <= swap(fuzzy) + 0.03",
               t0["fuzzy-global"].swap <= t0["fuzzy"].swap + 0.03,
               f"{t0['fuzzy-global'].swap:.3f} vs {t0['fuzzy'].swap:.3f}"),
-        Check("(iv) TV13 (c): nn and ml decisions identical across IFF settings and policies", identical_decisions,
+        _verdict("(iv) TV13 (c): nn and ml decisions identical across IFF settings and policies", identical_decisions,
               "bit-identical" if identical_decisions else "decisions differ"),
     ]
 
@@ -88,10 +86,10 @@ def qualitative_checks(table: pd.DataFrame) -> list[Check]:
     for error in (0.0, 0.2):
         nn = _at(table, "nn", error=error)
         spread = max(abs(_at(table, m, error=error).swap - nn.swap) for m in ("fuzzy", "crisp"))
-        checks.append(Check(f"Q1 track, errors {error:g}: swap(fuzzy), swap(crisp) within 0.1 of swap(nn)",
+        checks.append(_verdict(f"Q1 track, errors {error:g}: swap(fuzzy), swap(crisp) within 0.1 of swap(nn)",
                             spread <= 0.1, f"largest difference {spread:.3f}"))
     drift = abs(_at(table, "fuzzy", error=0.2).swap - _at(table, "fuzzy").swap)
-    checks.append(Check("Q1 track: IFF errors 0 -> 0.2 change swap(fuzzy) by <= 0.1", drift <= 0.1, f"{drift:.3f}"))
+    checks.append(_verdict("Q1 track: IFF errors 0 -> 0.2 change swap(fuzzy) by <= 0.1", drift <= 0.1, f"{drift:.3f}"))
     # Q2: the global assignment never swaps more than greedy fuzzy
     worse = []
     for _, row in table[table.method == "fuzzy"].iterrows():
@@ -99,23 +97,23 @@ def qualitative_checks(table: pd.DataFrame) -> list[Check]:
         glob = cell(table, "fuzzy-global", **settings)
         if glob.swap > row.swap + _margin(glob, row, "swap"):
             worse.append(f"{settings}: {glob.swap:.3f} > {row.swap:.3f}")
-    checks.append(Check("Q2 swap(fuzzy-global) <= swap(fuzzy) in every configuration (2 SE)", not worse,
+    checks.append(_verdict("Q2 swap(fuzzy-global) <= swap(fuzzy) in every configuration (2 SE)", not worse,
                         "; ".join(worse) or f"{(table.method == 'fuzzy').sum()} configurations"))
     # Q3: the determinant term of ml pulls plots to the tighter track in close crossings
     for beta in (5.0, 10.0):
         for q in (1.0, 25.0):
             ml, nn = _at(table, "ml", beta=beta, q=q), _at(table, "nn", beta=beta, q=q)
             holds, relation = (ml.swap > nn.swap, ">") if beta == 5.0 else (ml.swap >= nn.swap, ">=")
-            checks.append(Check(f"Q3 beta {beta:g} deg, q {q:g}: swap(ml) {relation} swap(nn)", holds,
+            checks.append(_verdict(f"Q3 beta {beta:g} deg, q {q:g}: swap(ml) {relation} swap(nn)", holds,
                                 f"{ml.swap:.3f} vs {nn.swap:.3f}"))
     # Q4: continuous error-free interrogation nearly removes swaps for the feature rules
     for method in ("fuzzy", "fuzzy-global", "crisp"):
         row = _at(table, method, "always")
-        checks.append(Check(f"Q4 always, errors 0: {method} swap <= 0.02 and CAR > 0.98",
+        checks.append(_verdict(f"Q4 always, errors 0: {method} swap <= 0.02 and CAR > 0.98",
                             row.swap <= 0.02 + SE_MARGIN * row.swap_se and row.car > 0.98,
                             f"swap {row.swap:.3f}, CAR {row.car:.3f}"))
     same = all(_at(table, m, "always").car == _at(table, m).car for m in ("nn", "ml"))
-    checks.append(Check("Q4 nn and ml unaffected by the policy", same, "identical CAR" if same else "differ"))
+    checks.append(_verdict("Q4 nn and ml unaffected by the policy", same, "identical CAR" if same else "differ"))
     checks += _q5(table)
     return checks
 
@@ -124,26 +122,26 @@ def _q5(table: pd.DataFrame) -> list[Check]:
     """Q5: crisp breaks tracks as errors grow; the fuzzy rules degrade gradually."""
     checks = []
     crisp_swaps = [float(_at(table, "crisp", "always", e).swap) for e in ERROR_RATES]
-    checks.append(Check("Q5 swap(crisp) ~ 0 at every error rate (<= 0.02)", max(crisp_swaps) <= 0.02,
+    checks.append(_verdict("Q5 swap(crisp) ~ 0 at every error rate (<= 0.02)", max(crisp_swaps) <= 0.02,
                         ", ".join(f"{s:.3f}" for s in crisp_swaps)))
     c10, n10 = _at(table, "crisp", "always", 0.1), _at(table, "nn", "always", 0.1)
-    checks.append(Check("Q5 errors 0.1: CAR(crisp) at or below CAR(nn) (2 SE)", c10.car <= n10.car + _margin(c10, n10, "car"),
+    checks.append(_verdict("Q5 errors 0.1: CAR(crisp) at or below CAR(nn) (2 SE)", c10.car <= n10.car + _margin(c10, n10, "car"),
                         f"{c10.car:.3f} vs {n10.car:.3f}"))
     for error in (0.2, 0.3):
         c, n = _at(table, "crisp", "always", error), _at(table, "nn", "always", error)
-        checks.append(Check(f"Q5 errors {error:g}: CAR(crisp) far below CAR(nn) (by >= 0.1)", c.car <= n.car - 0.1,
+        checks.append(_verdict(f"Q5 errors {error:g}: CAR(crisp) far below CAR(nn) (by >= 0.1)", c.car <= n.car - 0.1,
                             f"{c.car:.3f} vs {n.car:.3f}"))
     for error in ERROR_RATES:
         nn = _at(table, "nn", "always", error)
         for method in ("fuzzy", "fuzzy-global"):
             row = _at(table, method, "always", error)
             if error <= 0.2:
-                checks.append(Check(f"Q5 errors {error:g}: CAR({method}) above CAR(nn) (2 SE)",
+                checks.append(_verdict(f"Q5 errors {error:g}: CAR({method}) above CAR(nn) (2 SE)",
                                     row.car >= nn.car - _margin(row, nn, "car"), f"{row.car:.3f} vs {nn.car:.3f}"))
-            checks.append(Check(f"Q5 errors {error:g}: swap({method}) below swap(nn) (2 SE)",
+            checks.append(_verdict(f"Q5 errors {error:g}: swap({method}) below swap(nn) (2 SE)",
                                 row.swap <= nn.swap + _margin(row, nn, "swap"), f"{row.swap:.3f} vs {nn.swap:.3f}"))
     f30, n30 = _at(table, "fuzzy", "always", 0.3), _at(table, "nn", "always", 0.3)
-    checks.append(Check("Q5 errors 0.3: CAR(fuzzy) reaches CAR(nn) (within 0.05)", abs(f30.car - n30.car) <= 0.05,
+    checks.append(_verdict("Q5 errors 0.3: CAR(fuzzy) reaches CAR(nn) (within 0.05)", abs(f30.car - n30.car) <= 0.05,
                         f"{f30.car:.3f} vs {n30.car:.3f}"))
     return checks
 
