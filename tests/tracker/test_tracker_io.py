@@ -14,7 +14,7 @@ FORMATS_TRACK_COLUMNS = [
     "time", "track_id", "x", "y", "z", "vx", "vy", "vz",
     "var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz",
     "lat", "lon", "alt_m", "status", "n_updates", "n_misses",
-    "mode3a", "icao24", "callsign", "iff", "model_probs",
+    "mode3a", "icao24", "callsign", "iff", "identity_source", "identity_p", "model_probs",
 ]
 
 

@@ -1,5 +1,10 @@
 """The tracking pipeline: read plots in chunks, track them, write tracks incrementally.
 
+Beside the tracks, a run whose plots carried identity (Mode 3/A, Mode S, IFF) writes the
+identity events (docs/formats.md: ``NAME.identity.parquet`` or ``.csv``; empty when no
+confirmed track's identity changed).  A run without identity data writes none and removes an
+events file a previous run left at that place, so the file beside the tracks is always theirs.
+
 :func:`run_tracking` is what ``skytrack track`` runs; it prints nothing and reports its
 progress through an optional callback, so a GUI, a service or a benchmark can call it too.
 """
@@ -47,6 +52,12 @@ class RunSummary:
     """where the tracks were written"""
     no_tracks_reason: str | None = None
     """why no track row was written (``None`` when some were)"""
+    identity_events_file: str | None = None
+    """where the identity events were written (``None``: no plot carried identity, no file)"""
+    identity_event_rows: int = 0
+    """rows written to the identity-events file"""
+    no_identity_events_reason: str | None = None
+    """why no identity-events file was written (``None`` when one was)"""
 
     @property
     def plots_per_s(self) -> float:
@@ -58,7 +69,9 @@ class RunSummary:
             "plots": self.plots, "tracks_file": self.tracks_file, "track_rows": self.track_rows,
             "elapsed_s": self.elapsed_s, "stats": dict(self.stats), "warnings": list(self.warnings),
             "report": None if self.report is None else str(self.report), "tracking_dim": self.tracking_dim,
-            "no_tracks_reason": self.no_tracks_reason,
+            "no_tracks_reason": self.no_tracks_reason, "identity_events_file": self.identity_events_file,
+            "identity_event_rows": self.identity_event_rows,
+            "no_identity_events_reason": self.no_identity_events_reason,
         }
 
 
@@ -82,7 +95,8 @@ def run_tracking(
     ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.  Values that
     look like kilometres or radians stop the run unless ``units_confirmed``.
     """
-    from skytrack.io import ReadReport, iter_plot_batches, read_sensors, refuse_overwriting
+    from skytrack.io import ReadReport, identity_events_path, iter_plot_batches, read_sensors, refuse_overwriting
+    from skytrack.io.identity_events import IdentityEventWriter
     from skytrack.io.tables import count_rows
     from skytrack.io.tracks import TrackWriter
     from skytrack.tracker import Tracker, TrackerConfig
@@ -91,6 +105,8 @@ def run_tracking(
         raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
     plots_path, out = Path(plots_path), Path(out)
     refuse_overwriting(out, plots=plots_path, sensors=sensors_path)
+    events_path = identity_events_path(out)
+    refuse_overwriting(events_path, plots=plots_path, sensors=sensors_path)
     config = config if config is not None else TrackerConfig()
     report_progress = progress or (lambda stage, completed, total: None)
     sensor_set = read_sensors(sensors_path)
@@ -101,16 +117,22 @@ def run_tracking(
     plots_read = 0
     report_progress("track", 0, total)
     first_time, last_time = math.inf, -math.inf
+    events = IdentityEventWriter(events_path)
     with TrackWriter(out) as writer:
         for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report,
                                        units_confirmed=units_confirmed):
             tracker.feed(chunk, source=str(plots_path))
             first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
             writer.write(tracker.drain_arrow(), checked=True)
+            events.write(tracker.drain_identity_events())
             plots_read += len(chunk)
             report_progress("track", plots_read, total)
         tracker.finish()
         writer.write(tracker.drain_arrow(), checked=True)
+        events.write(tracker.drain_identity_events())
+        events.close(create=tracker.identity_seen)
+        if not tracker.identity_seen:
+            events_path.unlink(missing_ok=True)  # a previous run's events do not belong to these tracks
         # evaluate measures times (to the first track, ...) from the input's start, not the first track's
         writer.run_metadata = {
             "input_file": plots_path.name, "input_plots": plots_read, "epoch_utc": sensor_set.epoch_utc,
@@ -125,6 +147,10 @@ def run_tracking(
     )
     if summary.track_rows == 0:
         summary.no_tracks_reason = no_tracks_reason(summary, config)
+    if tracker.identity_seen:
+        summary.identity_events_file, summary.identity_event_rows = str(events_path), events.rows
+    else:
+        summary.no_identity_events_reason = "no plot carried a Mode 3/A code, a Mode S address or an IFF reply"
     return summary
 
 

@@ -1,4 +1,5 @@
-"""The tracks table: its columns (one source for the tracker's output and the io writers)."""
+"""The tracks table and the identity-events table: their columns and vocabularies (one source
+for the tracker's output and the io writers and readers; docs/formats.md)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,17 @@ TRACK_OUTPUT_COLUMNS = [
     "time", "track_id", "x", "y", "z", "vx", "vy", "vz",
     "var_x", "var_y", "var_z", "var_vx", "var_vy", "var_vz",
     "lat", "lon", "alt_m", "status", "n_updates", "n_misses",
-    "mode3a", "icao24", "callsign", "iff", "model_probs",
+    "mode3a", "icao24", "callsign", "iff", "identity_source", "identity_p", "model_probs",
 ]
 INTEGER_COLUMNS = {"track_id", "n_updates", "n_misses"}
 #: text columns the tracker fills (pandas "str" dtype) and those it leaves empty (object, all None)
-TEXT_COLUMNS = {"status", "mode3a", "icao24", "iff"}
+TEXT_COLUMNS = {"status", "mode3a", "icao24", "iff", "identity_source"}
 EMPTY_COLUMNS = {"callsign", "model_probs"}
+#: ``identity_source`` and the identity events' ``source`` (``adsb`` and ``radar``: issue 9)
+IDENTITY_SOURCES = ("mode_s", "adsb", "iff", "radar")
+#: the identity events' ``field`` values
+IDENTITY_EVENT_FIELDS = ("icao24", "callsign", "mode3a", "iff")
+IDENTITY_EVENT_COLUMNS = ["time", "track_id", "field", "old", "new", "source", "identity_p"]
 
 
 def covariance_columns(state_dim: int) -> list[str]:

@@ -14,10 +14,12 @@ columns in FORMATS.md order followed by the extras, and create parent directorie
 
 from skytrack.io.adsb import read_adsb, write_adsb
 from skytrack.io.errors import InputError, InputWarning, ReadReport, SkippedRows, refuse_overwriting
+from skytrack.io.identity_events import identity_events_path, read_identity_events, write_identity_events
 from skytrack.io.plots import iter_plot_batches, iter_plots, read_plots, write_plots
 from skytrack.io.schema import (
     ADSB_COLUMNS,
     ADSB_SCHEMA,
+    IDENTITY_EVENT_SCHEMA,
     IFF_VALUES,
     OPENSKY_COLUMNS,
     PLOT_COLUMNS,
@@ -53,6 +55,10 @@ __all__ = [
     "STATE_COLUMNS",
     "read_tracks",
     "write_tracks",
+    "read_identity_events",
+    "write_identity_events",
+    "identity_events_path",
+    "IDENTITY_EVENT_SCHEMA",
     "read_adsb",
     "write_adsb",
     "read_table",

@@ -1,4 +1,4 @@
-"""Column schemas of the FORMATS.md tables (plots, adsb, truth, tracks, OpenSky input).
+"""Column schemas of the FORMATS.md tables (plots, adsb, truth, tracks, identity events, OpenSky input).
 
 Dtype policy of every reader and writer (one rule for all tables):
 
@@ -184,7 +184,22 @@ TRACK_SCHEMA = TableSchema(
         _s("icao24"),
         _s("callsign"),
         _s("iff"),
+        _s("identity_source"),
+        _f("identity_p"),
         _s("model_probs"),
+    ),
+)
+
+IDENTITY_EVENT_SCHEMA = TableSchema(
+    "identity events",
+    (
+        _f("time", "s", True),
+        Column("track_id", "int", True),
+        _s("field", True),
+        _s("old"),
+        _s("new"),
+        _s("source"),
+        _f("identity_p"),
     ),
 )
 
@@ -221,6 +236,7 @@ TEXT_COLUMNS = frozenset(
         "mode_s",
         "icao24",
         "iff",
+        "identity_source",
         "truth_id",
         "target_id",
         "callsign",

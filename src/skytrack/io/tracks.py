@@ -10,7 +10,9 @@ Checks (both directions): ``time`` finite, ``track_id`` an integer, ``x``/``y`` 
 ``z``, velocities, variances, lat/lon/alt_m finite or null; variances >= 0; lat/lon in
 range; ``status`` confirmed/coasting or null; ``n_updates``/``n_misses`` non-negative
 integers or null; identity columns as in plots (``mode3a`` 4 octal digits, ``icao24``
-6 hex digits, ``iff`` friend/foe/undetermined).  ``model_probs`` is JSON text, not parsed.
+6 hex digits, ``iff`` friend/foe/undetermined); ``identity_source`` one of mode_s, adsb, iff,
+radar or null; ``identity_p`` in [0, 1] or null.  ``model_probs`` is JSON text, not parsed.
+The identity events beside a tracks file are in :mod:`skytrack.io.identity_events`.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import pyarrow as pa
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 
+from skytrack.core.tracks import IDENTITY_SOURCES
 from skytrack.geo.sensors import Origin
 from skytrack.io.checks import (
     RowChecks,
@@ -81,6 +84,7 @@ def _validate_tracks(df: pd.DataFrame, source: TableSource, lenient: bool, repor
             values = df[name].to_numpy(dtype=np.float64, na_value=np.nan)
             flag_values(checks, values < 0, values, name, "is negative")
     check_identity_columns(df, checks, report)
+    check_identity_confidence(df, checks)
     for name in df.columns:
         if _COVARIANCE.fullmatch(str(name)):  # CSV would infer whole numbers as int64
             as_float(df, name, checks, required=False)
@@ -88,6 +92,17 @@ def _validate_tracks(df: pd.DataFrame, source: TableSource, lenient: bool, repor
         as_string(df, "model_probs", checks, required=False)
     df = checks.finish(df, lenient=lenient, report=report)
     return order_columns(df, TRACK_SCHEMA)
+
+
+def check_identity_confidence(df: pd.DataFrame, checks: RowChecks) -> None:
+    """``identity_source`` one of :data:`~skytrack.core.tracks.IDENTITY_SOURCES`, ``identity_p``
+    in [0, 1] (each null allowed)."""
+    if "identity_source" in df.columns:
+        flag_not_in(checks, as_string(df, "identity_source", checks, required=False), "identity_source",
+                    IDENTITY_SOURCES)
+    if "identity_p" in df.columns:
+        values = as_float(df, "identity_p", checks, required=False)
+        flag_values(checks, (values < 0) | (values > 1), values, "identity_p", "is outside [0, 1]")
 
 
 def add_missing_columns(df: pd.DataFrame, schema: TableSchema) -> pd.DataFrame:

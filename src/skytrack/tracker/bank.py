@@ -13,11 +13,12 @@ from __future__ import annotations
 import numpy as np
 
 from skytrack.filters.base import ArrayState, GaussianState
+from skytrack.tracker.identity import IDENTITY_DEFAULT
 
 TENTATIVE = 0
 CONFIRMED = 1
 
-#: name -> (dtype, default for new rows)
+#: name -> (dtype, default for new rows); a default that is an array makes a 2-D column (one such row per track)
 STANDARD_COLUMNS: dict[str, tuple[type, object]] = {
     "t": (np.float64, 0.0),  # time of the state
     "track_id": (np.int64, 0),
@@ -34,6 +35,8 @@ STANDARD_COLUMNS: dict[str, tuple[type, object]] = {
     "mode3a": (np.int32, -1),
     "icao24": (np.int32, -1),
     "iff": (np.int8, -1),
+    # replies seen and identity last shown in the events (layout: skytrack.tracker.identity)
+    "identity": (np.int32, IDENTITY_DEFAULT),
     "score": (np.float64, 0.0),  # track score: log-likelihood ratio (skytrack.tracker.evidence)
     "score_max": (np.float64, 0.0),  # its largest value so far (deletion by the drop from it)
 }
@@ -79,10 +82,10 @@ class TrackBank:
         return {name: column[: self.size] for name, column in self.column_storage.items()}
 
     def register_column(self, name: str, dtype, default) -> None:
-        """Add a column (existing rows get ``default``)."""
+        """Add a column (existing rows get ``default``; an array ``default`` is each row of a 2-D column)."""
         if name in self.column_storage:
             raise ValueError(f"track bank column {name!r} exists already")
-        self.column_storage[name] = np.full(self.capacity, default, dtype=dtype)
+        self.column_storage[name] = np.full((self.capacity, *np.shape(default)), default, dtype=dtype)
         self.defaults[name] = default
 
     def __getattr__(self, name: str) -> np.ndarray:
@@ -102,7 +105,7 @@ class TrackBank:
         grown = type(self.storage).concat([self.storage, self.storage.take(np.zeros(capacity - self.capacity, np.intp))])
         self.storage = grown
         for name, column in self.column_storage.items():
-            extra = np.full(capacity - len(column), self.defaults[name], dtype=column.dtype)
+            extra = np.full((capacity - len(column), *column.shape[1:]), self.defaults[name], dtype=column.dtype)
             self.column_storage[name] = np.concatenate([column, extra])
 
     def append(self, state: ArrayState, **values) -> None:

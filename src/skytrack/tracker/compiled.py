@@ -100,7 +100,8 @@ class CompiledStages:
             self._rotation[s], self._origin[s], self.scorer.gate(dim + 1), MAX_DENSE_CLUSTER, psi_enabled, on, off,
             memory, self.config.initiation.method == "two-point", nis_avg, filter_updates, columns["n_updates"],
             columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"], columns["icao24"],
-            columns["iff"], plots.mode3a, plots.mode_s, plots.iff, *self.scoring.clutter_arguments(s), self.llr_cost,
+            columns["iff"], columns["identity"], plots.mode3a, plots.mode_s, plots.iff,
+            *self.scoring.clutter_arguments(s), self.llr_cost,
             self.scoring.log_pd[s], self.scoring.log_miss[s], self._evidence[0], columns["score"], columns["score_max"],
         )
 
@@ -151,7 +152,7 @@ class CompiledStages:
         with_psi = isinstance(storage, ManoeuvreState)
         cfg = self.config.lifecycle
         x, P, mu, mu0 = self._mixture_arrays()
-        size, misses, confirmed, hopeless, lost = initiate_manage(
+        size, misses, confirmed, hopeless, lost, self.identity_changed = initiate_manage(
             len(bank), new, plots.time, converted.position, converted.covariance, plots.mode_c_m, plots.mode3a,
             plots.mode_s, plots.iff, self.next_track_id, self.config.initiation.sigma_v, self.dim, with_psi, hit,
             expected, w_end, cfg.confirm_m, cfg.confirm_n, cfg.delete_misses, cfg.max_position_sigma_m, self.pos,
@@ -160,8 +161,8 @@ class CompiledStages:
             columns["t"], columns["track_id"], columns["status"], columns["hit_bits"], columns["n_events"],
             columns["n_updates"], columns["n_misses"], columns["created"], columns["last_event"],
             columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
-            columns["iff"], columns["score"], columns["score_max"], *self._score_settings(s), plots.range_m,
-            plots.azimuth, plot_stage, (w_end - w_start) / self.scoring.periods[s], *self.scoring.clutter_arguments(s),
+            columns["iff"], columns["identity"], columns["score"], columns["score_max"], *self._score_settings(s),
+            plots.range_m, plots.azimuth, plot_stage, (w_end - w_start) / self.scoring.periods[s], *self.scoring.clutter_arguments(s),
             self.scoring.code_counts[s], outside,
         )
         bank.size = size
@@ -223,14 +224,14 @@ class CompiledStages:
         arguments = self._stage_arguments(s, plots, converted)
         (plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, _, dim, search_scale, margin_s, gate,
          replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, _, _, _, _,
-         two_point, _, _, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
-         clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max) = arguments
+         two_point, _, _, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s,
+         plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max) = arguments
         rows, plot_rows, candidates = stage_imm(
             tracks, free, storage.x, storage.P, storage.mu, columns["t"], columns["alt_m"], forced, modes, sojourn,
             fixed, t_ref, plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, dim, search_scale,
             margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
-            two_point, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
-            clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max,
+            two_point, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s,
+            plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max,
         )
         self.stats["candidate_pairs"] += candidates
         if manoeuvre:

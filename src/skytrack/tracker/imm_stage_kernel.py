@@ -196,7 +196,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c, modes, x_all, P_all, mu_all, ndim,
-                     two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, plot_time,
+                     two_point, t, n_updates, n_misses, z_hint, alt_m, status, mode3a, icao24, iff, identity, plot_time,
                      plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain, score, score_max):
     """Mode-matched updates (Joseph form) of the chosen pairs: each mode predicted in full from the
     pair's mixed modes (``pair_x``, ``pair_P``, weights ``pair_c``, as the gate mixed them), mode probabilities,
@@ -271,14 +271,14 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
                         P_all[k, jm, 2 * a, 2 * b + 1] = r2 / dt
                         P_all[k, jm, 2 * a + 1, 2 * b] = pair_cov[pair, b, a] / dt
     write_hits(rows, plot_rows, pair_pos[:, 2], gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
-               icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
+               icao24, iff, identity, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
 
 
 @njit(cache=True, nogil=True)
 def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref,
               plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
               replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, two_point,
-              n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff,
+              n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff,
               clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, logdet, position, covariance, mixed_x, mixed_P, mixed_c, candidates = gate_stage_imm(
@@ -294,6 +294,6 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
     update_write_imm(rows, plot_rows, position[pick], covariance[pick], mixed_x[track_of_pair], mixed_P[track_of_pair],
                      mixed_c[track_of_pair], modes, x_all,
                      P_all, mu_all, ndim, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a,
-                     icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,
+                     icao24, iff, identity, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,
                      score_max)
     return rows, plot_rows, candidates

@@ -27,6 +27,7 @@ from numba import njit
 
 from skytrack.association.grid_kernels import search_grid, spread_classes
 from skytrack.models.conversion_kernels import place_2d
+from skytrack.tracker.identity import remember_replies
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -356,10 +357,11 @@ def joseph_position_update(xp, Pp, z, R, L, m, K, y, AP, KR, x_out, P_out):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def write_hits(rows, plot_rows, heights, gains, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a, icao24,
-               iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
+               iff, identity, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff):
     """The bank columns of tracks ``rows`` after their hits by plots ``plot_rows``
     (:meth:`ScanProcessor._write_updates`): time, counts, score (``gains``), the plots' heights,
-    and the Mode C, Mode 3/A, Mode S and IFF they carry.  One call per stage, after the state
+    and the Mode C, Mode 3/A, Mode S and IFF they carry (spec 003 R14 and the reply counts:
+    :func:`skytrack.tracker.identity.remember_replies`).  One call per stage, after the state
     updates: called per hit, the array arguments cost more than the writes."""
     for c in range(len(rows)):
         k = rows[c]
@@ -372,19 +374,14 @@ def write_hits(rows, plot_rows, heights, gains, t, n_updates, n_misses, score, s
         z_hint[k] = heights[c]
         if np.isfinite(plot_mode_c[j]):
             alt_m[k] = plot_mode_c[j]
-        if plot_mode3a[j] >= 0:
-            mode3a[k] = plot_mode3a[j]
-        if plot_mode_s[j] >= 0:
-            icao24[k] = plot_mode_s[j]
-        if plot_iff[j] >= 0:
-            iff[k] = plot_iff[j]
+        remember_replies(identity, k, mode3a, icao24, iff, plot_mode3a[j], plot_mode_s[j], plot_iff[j])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, manoeuvre, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x, P, psi, nis_avg, filter_updates, t, n_updates, n_misses,
-                    z_hint, alt_m, status, mode3a, icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s,
-                    plot_iff, gain, score, score_max):
+                    z_hint, alt_m, status, mode3a, icao24, iff, identity, plot_time, plot_mode_c, plot_mode3a,
+                    plot_mode_s, plot_iff, gain, score, score_max):
     """Kalman update (Joseph form) of the chosen pairs, the psi switch, and the bank's columns, in place.
 
     Each chosen pair is predicted to its plot's time (process noise ``q_big`` times the model's
@@ -447,4 +444,4 @@ def update_write_cv(rows, plot_rows, d2, pair_pos, pair_cov, q, q_big, ndim, man
             for jj in range(n):
                 P[k, i, jj] = P_new[i, jj]
     write_hits(rows, plot_rows, pair_pos[:, 2], gain, t, n_updates, n_misses, score, score_max, z_hint, alt_m, mode3a,
-               icao24, iff, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)
+               icao24, iff, identity, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff)

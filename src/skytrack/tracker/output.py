@@ -8,7 +8,9 @@ exist (fewer than ``report_max_misses`` consecutive misses: :func:`reported_rows
 :func:`tracks_frame` makes it a DataFrame, :func:`tracks_arrow` an Arrow table for a writer
 (no DataFrame on the way to the file).
 2-D tracks carry ``z`` null and their last Mode C altitude as ``alt_m``; lat/lon come from
-the ENU position (at the last plot's height for 2-D tracks).
+the ENU position (at the last plot's height for 2-D tracks).  ``identity_source`` and
+``identity_p`` come from the tracks' reply counts (:func:`skytrack.tracker.identity.identity_probability`,
+with the per-reply error probability ``identity_error_p``).
 """
 
 from __future__ import annotations
@@ -23,22 +25,28 @@ from skytrack.core.plots import icao24_text, iff_text, mode3a_text
 from skytrack.core.tracks import EMPTY_COLUMNS, covariance_columns
 from skytrack.geo.wgs84 import enu_to_geodetic_closed_form
 from skytrack.tracker.bank import CONFIRMED, TrackBank
+from skytrack.tracker.identity import DEFAULT_ERROR_P, identity_probability, source_text
 
 
 @dataclass
 class OutputConfig:
     """``report_max_misses``: a confirmed track is reported only while it has fewer consecutive
-    misses than this (it probably still exists; 0 reports every confirmed track until deleted)."""
+    misses than this (it probably still exists; 0 reports every confirmed track until deleted).
+    ``identity_error_p``: the probability that one reply (IFF status, Mode 3/A code, Mode S
+    address) is wrong, behind ``identity_p`` (:mod:`skytrack.tracker.identity`)."""
 
     output_interval_s: float | None = None
     full_covariance: bool = False
     report_max_misses: int = 4
+    identity_error_p: float = DEFAULT_ERROR_P
 
     def __post_init__(self) -> None:
         if self.output_interval_s is not None and not self.output_interval_s > 0:
             raise ValueError(f"output_interval_s must be > 0, got {self.output_interval_s}")
         if self.report_max_misses < 0:
             raise ValueError(f"report_max_misses must be >= 0, got {self.report_max_misses}")
+        if not 0.0 < self.identity_error_p < 0.5:
+            raise ValueError(f"identity_error_p must be in (0, 0.5), got {self.identity_error_p}")
 
 
 def reported_rows(bank: TrackBank, max_misses: int) -> np.ndarray:
@@ -101,6 +109,7 @@ def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarra
         "var": np.diagonal(P, axis1=1, axis2=2), "n_updates": bank.n_updates[rows],
         "n_misses": bank.n_misses[rows], "alt_m": bank.alt_m[rows], "z_hint": bank.z_hint[rows],
         "mode3a": bank.mode3a[rows], "icao24": bank.icao24[rows], "iff": bank.iff[rows],
+        "identity": bank.identity[rows],
     }
     if full_covariance:
         iu, ju = np.triu_indices(n)
@@ -157,7 +166,8 @@ def _status_text(coasting: np.ndarray):
 
 
 def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin,
-                model_names: tuple[str, ...] | None = None) -> dict[str, object]:
+                model_names: tuple[str, ...] | None = None,
+                identity_error_p: float = DEFAULT_ERROR_P) -> dict[str, object]:
     """The tracks-table columns (docs/formats.md order) of concatenated instant records.
 
     Numbers are numpy arrays (NaN where unknown), text columns pyarrow arrays (null where
@@ -195,6 +205,10 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     columns["icao24"] = icao24_text(parts["icao24"])
     columns["callsign"] = pa.nulls(count, pa.string())
     columns["iff"] = iff_text(parts["iff"])
+    source, identity_p = identity_probability(parts["identity"], parts["mode3a"], parts["icao24"], parts["iff"],
+                                              identity_error_p)
+    columns["identity_source"] = source_text(source)
+    columns["identity_p"] = identity_p
     if "model_probs" in parts and model_names is not None:
         columns["model_probs"] = model_probs_text(parts["model_probs"], model_names)
     else:

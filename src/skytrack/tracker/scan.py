@@ -15,6 +15,9 @@ A window of one sensor is processed as a composition of parts:
 4. expected tracks without a plot record a miss (no update: spec 000 R4);
 5. plots left over start tentative tracks; M-of-N confirmation and deletion.
 
+A hit also updates the track's identity by spec 003 R14 (latest definite reply) and counts the
+replies behind it (:mod:`skytrack.tracker.identity`).
+
 This composition works for every registered filter, scorer and assigner and is the reference.
 The common configuration runs the same steps through compiled kernels instead
 (:mod:`skytrack.tracker.compiled`, mixed in here); tests hold the two equal.
@@ -42,6 +45,7 @@ from skytrack.models.height import bounded_height
 from skytrack.tracker.compiled import CompiledStages, fused_cv_q, fused_imm
 from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
 from skytrack.tracker.evidence import TrackScoring, ssr_log_ratio_reference
+from skytrack.tracker.identity import initial_identity, remember_replies_reference
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.schedule import Schedule
@@ -156,6 +160,9 @@ class ScanProcessor(CompiledStages):
         self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
         self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
         self._no_psi = np.zeros(1, dtype=bool)
+        #: bank rows whose identity changed in the last window, when the compiled end of window
+        #: listed them (None: :func:`skytrack.tracker.identity.changed_rows` finds them)
+        self.identity_changed: np.ndarray | None = None
         self._standard_columns = set(STANDARD_COLUMNS)
         # coverage of every radar, for "no plot is due outside coverage" (Schedule.in_any_coverage)
         radars = [r for r in sensors.sensors if r.is_radar]
@@ -196,6 +203,7 @@ class ScanProcessor(CompiledStages):
 
     def process(self, s: int, w_start: float, w_end: float, plots: PlotBatch, converted: ConvertedPlots) -> None:
         self._window_evidence(s)
+        self.identity_changed = None
         if self.fused[s] and self.schedule.rotating[s] and set(self.bank.column_storage) == self._standard_columns:
             self._process_compiled(s, w_start, w_end, plots, converted)
             return
@@ -374,10 +382,7 @@ class ScanProcessor(CompiledStages):
         bank.z_hint[ti] = position[:, 2]
         mode_c = plots.mode_c_m[pj]
         bank.alt_m[ti] = np.where(np.isfinite(mode_c), mode_c, bank.alt_m[ti])
-        for column, values in (("mode3a", plots.mode3a), ("icao24", plots.mode_s), ("iff", plots.iff)):
-            new = values[pj]
-            known = new >= 0
-            getattr(bank, column)[ti[known]] = new[known]
+        remember_replies_reference(bank, ti, plots.mode3a[pj], plots.mode_s[pj], plots.iff[pj])
 
     def _initiate(self, plots: PlotBatch, position: np.ndarray, covariance: np.ndarray) -> None:
         """Start tentative tracks from unassigned plots."""
@@ -391,5 +396,6 @@ class ScanProcessor(CompiledStages):
             self.filter.initiate(x, P), t=plots.time, track_id=ids, status=TENTATIVE, hit_bits=1, n_events=1,
             n_updates=1, n_misses=0, created=plots.time, alt_m=plots.mode_c_m, z_hint=position[:, 2],
             mode3a=plots.mode3a, icao24=plots.mode_s, iff=plots.iff,
+            identity=initial_identity(plots.mode3a, plots.mode_s, plots.iff),
         )
         self.stats["tracks_started"] += count

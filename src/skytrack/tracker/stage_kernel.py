@@ -26,8 +26,8 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-             z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost,
-             log_pd, log_miss, ssr, score, score_max):
+             z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff, clutter_grid,
+             clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, logdet, position, covariance, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
@@ -40,7 +40,7 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
     pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
     update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all,
-                    n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, plot_time, plot_mode_c,
+                    n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, identity, plot_time, plot_mode_c,
                     plot_mode3a, plot_mode_s, plot_iff, gain[pick], score, score_max)
     return rows, plot_rows, candidates
 
@@ -100,7 +100,7 @@ def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, l
 def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all, P_all, t_all, alt_all, psi_all, q_big, plot_time, plot_pos, plot_cov, plot_mode_c,
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
-              nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, plot_mode3a,
+              nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a,
               plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max, plot_stage):
     """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
@@ -147,8 +147,8 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
             plot_cov, plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s,
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
-            z_hint, status, mode3a, icao24, iff, plot_mode3a, plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost,
-            log_pd, log_miss, ssr, score, score_max)
+            z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff, clutter_grid,
+            clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max)
         candidates += found
         for c in range(len(rows)):
             hit[rows[c]] = True

@@ -4,7 +4,9 @@
 expectations), the filter (from the registry, by the configuration's ``filter`` section),
 the track bank, the scan processor (association parts, update, initiation), the life cycle
 and the output clock — and offers ``feed`` / ``finish`` / ``drain`` for streaming input,
-``run`` for a whole table, and ``snapshot(t)`` for a live display.
+``run`` for a whole table, and ``snapshot(t)`` for a live display.  Once a plot has carried
+an identity (Mode 3/A, Mode S, IFF), every change of a confirmed track's identity is an
+identity event (:mod:`skytrack.tracker.identity`; ``drain_identity_events``).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from skytrack.filters.imm_kernels import imm_predict_matched
 from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
+from skytrack.tracker.identity import IdentityEvents, changed_rows
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.output import OutputClock, build_table, instant_record, reported_rows, tracks_arrow, tracks_frame
@@ -82,6 +85,9 @@ class Tracker:
         self.last_window_end = -np.inf
         # track rows per output instant, as column arrays; one DataFrame is built in drain()
         self.outputs: list[dict[str, np.ndarray]] = []
+        #: whether any plot fed so far carried Mode 3/A, Mode S or IFF (then identity events are kept)
+        self.identity_seen = False
+        self.identity_events = IdentityEvents(cfg.output.identity_error_p)
 
     # ------------------------------------------------------------------ public API
     @property
@@ -123,6 +129,8 @@ class Tracker:
         self.schedule.admit(chunk, source)
         if len(chunk) == 0:
             return
+        if not self.identity_seen:
+            self.identity_seen = bool((chunk.mode3a >= 0).any() or (chunk.mode_s >= 0).any() or (chunk.iff >= 0).any())
         self.pending = PlotBatch.concat([self.pending, chunk])
         self.pending_converted = ConvertedPlots.concat([self.pending_converted, self.scan.convert(chunk)])
         self.stats["plots"] += len(chunk)
@@ -138,7 +146,7 @@ class Tracker:
         if not self.outputs:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         outputs, self.outputs = self.outputs, []
-        return tracks_frame(build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names))
+        return tracks_frame(self._table(outputs))
 
     def drain_arrow(self):
         """:meth:`drain` as a pyarrow Table (typed as the tracks file stores it), for a writer:
@@ -146,14 +154,23 @@ class Tracker:
         if not self.outputs:
             return None
         outputs, self.outputs = self.outputs, []
-        return tracks_arrow(build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names))
+        return tracks_arrow(self._table(outputs))
+
+    def drain_identity_events(self):
+        """The identity events found so far (docs/formats.md "identity events") as a pyarrow
+        Table, and forget them; ``None`` when there are none."""
+        return self.identity_events.drain()
+
+    def _table(self, outputs: list[dict[str, np.ndarray]]) -> dict[str, object]:
+        return build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names,
+                           self.config.output.identity_error_p)
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
         rows = np.flatnonzero(self.bank.status == CONFIRMED) if confirmed_only else np.arange(len(self.bank))
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
-        return tracks_frame(build_table([self._rows_at(t, rows)], self.dim, self.order, self.sensors.origin, self.model_names))
+        return tracks_frame(self._table([self._rows_at(t, rows)]))
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
@@ -177,6 +194,11 @@ class Tracker:
                     continue  # nothing alive, nothing seen: the window has nothing to do
                 self.stats["windows"] += 1
                 self.scan.process(s, start, end, pending.take(rows), converted.take(rows))
+                if self.identity_seen:
+                    changed = self.scan.identity_changed
+                    if changed is None:
+                        changed = changed_rows(self.bank, self.bank.status == CONFIRMED)
+                    self.identity_events.record(self.bank, changed)
                 self.last_window_end = max(self.last_window_end, end)
             self.pending, self.pending_converted = pending.take(leftover), converted.take(leftover)
             if len(windows) < step:
@@ -205,17 +227,18 @@ class Tracker:
         storage, columns = bank.storage, bank.column_storage
         with_psi = isinstance(storage, ManoeuvreState)
         full = self.config.output.full_covariance
-        (rows, x, var, upper, track_id, n_updates, n_misses, alt_m, z_hint, mode3a, icao24,
-         iff) = report_cv(instant, len(bank), storage.x, storage.P, columns["t"], storage.psi if with_psi else
+        (rows, x, var, upper, track_id, n_updates, n_misses, alt_m, z_hint, mode3a, icao24, iff,
+         identity) = report_cv(instant, len(bank), storage.x, storage.P, columns["t"], storage.psi if with_psi else
                           self.scan._no_psi, with_psi, self.scan.fused_q,
                           float(self.filter.scale) if with_psi else 1.0, full, columns["status"], columns["track_id"],
                           columns["n_updates"], columns["n_misses"], columns["alt_m"], columns["z_hint"],
-                          columns["mode3a"], columns["icao24"], columns["iff"], self.config.output.report_max_misses)
+                          columns["mode3a"], columns["icao24"], columns["iff"], columns["identity"],
+                          self.config.output.report_max_misses)
         if len(rows) == 0:
             return None
         record = {"time": np.full(len(rows), instant), "track_id": track_id, "x": x, "var": var,
                   "n_updates": n_updates, "n_misses": n_misses, "alt_m": alt_m, "z_hint": z_hint,
-                  "mode3a": mode3a, "icao24": icao24, "iff": iff}
+                  "mode3a": mode3a, "icao24": icao24, "iff": iff, "identity": identity}
         if full:
             record["upper"] = upper
         return record

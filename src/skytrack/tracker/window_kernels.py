@@ -20,6 +20,16 @@ from skytrack.geo.polar import EARTH_RADIUS_M
 from skytrack.models.height import REFRACTION_K
 from skytrack.tracker.clutter_map import observe_kernel
 from skytrack.tracker.evidence import count_codes
+from skytrack.tracker.identity import (
+    ICAO24_N,
+    IDENTITY_WIDTH,
+    MODE3A_N,
+    N_FOE,
+    N_FRIEND,
+    SHOWN_ICAO24,
+    SHOWN_IFF,
+    SHOWN_MODE3A,
+)
 from skytrack.tracker.kernels import _max_eig_sym, _predict_cv_row
 
 _BELOW_TWO_PI = np.nextafter(2.0 * np.pi, 0.0)
@@ -190,8 +200,8 @@ def record_and_manage(hit, expected, w_end, confirm_m, confirm_n, delete_misses,
 def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c, plot_mode3a, plot_mode_s,
                     plot_iff, first_id, sigma_v, dim, with_psi, hit, expected, w_end, confirm_m, confirm_n, delete_misses,
                     max_sigma, pos_index, x, P, mu, mu0, psi, nis_avg, filter_updates, t, track_id, status, hit_bits, n_events,
-                       n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff, score,
-                       score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, plot_range,
+                       n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff,
+                       identity, score, score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, plot_range,
                        plot_azimuth,
                        plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside):
     """The end of a window for a bank of constant-velocity-layout states with the standard columns,
@@ -204,7 +214,9 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
     without ``with_psi`` the psi arrays are not touched.
     First the clutter map and the code counts learn from the window's plots
     (:meth:`skytrack.tracker.evidence.TrackScoring.observe`).
-    Returns the new size and the counts (misses, confirmed, hopeless, lost)."""
+    Returns the new size, the counts (misses, confirmed, hopeless, lost) and the kept rows (new
+    indices) of confirmed tracks whose identity differs from what the events last showed
+    (:func:`skytrack.tracker.identity.changed_rows`)."""
     count_codes(plot_stage, plot_mode3a, plot_mode_c, code_counts)
     observe_kernel(plot_range, plot_azimuth, plot_stage, scans, clutter_grid, clutter_params, clutter_log_area)
     n = 2 * dim
@@ -241,6 +253,17 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
         mode3a[k] = plot_mode3a[j]
         icao24[k] = plot_mode_s[j]
         iff[k] = plot_iff[j]
+        for i in range(IDENTITY_WIDTH):
+            identity[k, i] = 0
+        identity[k, N_FRIEND] = 1 if plot_iff[j] == 0 else 0
+        identity[k, N_FOE] = 1 if plot_iff[j] == 1 else 0
+        identity[k, MODE3A_N] = 1 if plot_mode3a[j] >= 0 else 0
+        identity[k, ICAO24_N] = 1 if plot_mode_s[j] >= 0 else 0
+        identity[k, MODE3A_N + 1] = -1
+        identity[k, ICAO24_N + 1] = -1
+        identity[k, SHOWN_MODE3A] = -1
+        identity[k, SHOWN_ICAO24] = -1
+        identity[k, SHOWN_IFF] = -1
         score[k] = 0.0
         score_max[k] = 0.0
     rows = size + len(new_plots)
@@ -249,6 +272,8 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
         hit_bits[:rows], n_events[:rows], n_misses[:rows], last_event[:rows], confirmed_at[:rows], score[:rows],
         score_max[:rows], log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, outside)
     m = 0
+    changed = np.empty(rows, np.int64)
+    n_changed = 0
     for k in range(rows):
         if not keep[k]:
             continue
@@ -278,15 +303,21 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
             mode3a[m] = mode3a[k]
             icao24[m] = icao24[k]
             iff[m] = iff[k]
+            for i in range(IDENTITY_WIDTH):
+                identity[m, i] = identity[k, i]
             score[m] = score[k]
             score_max[m] = score_max[k]
+        if status[m] == 1 and (mode3a[m] != identity[m, SHOWN_MODE3A] or icao24[m] != identity[m, SHOWN_ICAO24]
+                               or iff[m] != identity[m, SHOWN_IFF]):
+            changed[n_changed] = m
+            n_changed += 1
         m += 1
-    return m, misses, confirmed, hopeless, lost
+    return m, misses, confirmed, hopeless, lost, changed[:n_changed]
 
 
 @njit(cache=True, nogil=True)
 def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, status, track_id, n_updates,
-              n_misses, alt_m, z_hint, mode3a, icao24, iff, max_misses):
+              n_misses, alt_m, z_hint, mode3a, icao24, iff, identity, max_misses):
     """One output instant of a constant-velocity Gaussian bank: every reported track
     (:func:`skytrack.tracker.output.reported_rows`: confirmed, fewer than ``max_misses``
     consecutive misses unless that is 0) predicted to ``instant`` (the filter's process noise,
@@ -321,4 +352,4 @@ def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, 
                     upper[c, u] = Pr[i, j]
                     u += 1
     return (rows, x_out, var, upper, track_id[rows], n_updates[rows], n_misses[rows], alt_m[rows], z_hint[rows],
-            mode3a[rows], icao24[rows], iff[rows])
+            mode3a[rows], icao24[rows], iff[rows], identity[rows])
