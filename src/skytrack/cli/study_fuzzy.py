@@ -161,7 +161,8 @@ def fuzzy_crossing(
     methods: Annotated[str, typer.Option("--methods", help="Methods: nn, ml, fuzzy, fuzzy-global, crisp.")] =
     "nn,ml,fuzzy,fuzzy-global,crisp",
     sweeps: Annotated[str, typer.Option("--sweeps", help="Sweeps of spec 003 §6: S1 (policy), S2 (IFF errors), S3 "
-                                        "(beta x q), S4 (missing_iff); ignored when a list option is given.")] =
+                                        "(beta x q), S4 (missing_iff), T (the spec's indicative table); ignored "
+                                        "when a list option is given.")] =
     "S1,S2,S3,S4",
     beta_deg: ListOption = None, q: ListOption = None, p_flip: ListOption = None, p_code: ListOption = None,
     p_reply: ListOption = None,
@@ -239,6 +240,10 @@ def fuzzy_crossing(
         summary.add_row(first.sweep, first.policy, f"{first.p_flip:g}/{first.p_code:g}", f"{first.beta_deg:g}",
                         f"{first.q:g}", first.missing_iff, *(cells.get(m, "–") for m in method_list))
     console.print(summary)
+    if any(case.sweep in ("T", "check") for case in cases):
+        markdown = out / "fuzzy_crossing_table.md"
+        markdown.write_text(crossing_checks.indicative_markdown(table, seed))
+        console.print(f"the spec's indicative table with this run's cells: {markdown}")
     if check:
         checks = crossing_checks.ci_checks(table, crossing_checks.decisions_identical(kept))
         checks += crossing_checks.qualitative_checks(table)

@@ -13,7 +13,8 @@ one run are not independent, so this is the honest one for comparisons).
 
 Sweeps (§6): S1 policy in {track, always}; S2 (policy ``always``) p_flip = p_code in {0, 0.05,
 0.1, 0.2, 0.3} plus one-factor sweeps of each; S3 beta in {5, 10, 20, 45} deg x q in {1, 25};
-S4 ``missing_iff`` in {undetermined, neutral} under policy ``track``.  :func:`ci_checks` holds the
+S4 ``missing_iff`` in {undetermined, neutral} under policy ``track``; and T, the rows of the spec's
+indicative table (policy ``track`` with errors 0 and 0.2, policy ``always`` with errors 0-0.3).  :func:`ci_checks` holds the
 spec's CI-sized assertions (i)-(iv) and :func:`qualitative_checks` the expected results Q1-Q5.
 """
 
@@ -38,6 +39,8 @@ METHODS: dict[str, tuple[str, str]] = {
     "fuzzy-global": ("fuzzy", "global"), "crisp": ("crisp", "greedy"),
 }
 SWEEPS = ("S1", "S2", "S3", "S4")
+#: sweep names: S1-S4 of §6 and T, the configurations of the spec's indicative table
+SWEEP_NAMES = SWEEPS + ("T",)
 ERROR_RATES = (0.0, 0.05, 0.1, 0.2, 0.3)
 
 
@@ -80,8 +83,11 @@ def sweep_cases(sweeps: Iterable[str] = SWEEPS, base: CrossingCase = CrossingCas
             cases += [replace(base, sweep=name, beta_deg=b, q=q) for b in (5.0, 10.0, 20.0, 45.0) for q in (1.0, 25.0)]
         elif name == "S4":
             cases += [replace(base, sweep=name, missing_iff=m) for m in ("undetermined", "neutral")]
+        elif name == "T":
+            cases += [replace(base, sweep=name, policy="track", p_flip=e, p_code=e) for e in (0.0, 0.2)]
+            cases += [replace(base, sweep=name, policy="always", p_flip=e, p_code=e) for e in ERROR_RATES]
         else:
-            raise ValueError(f"unknown sweep {name!r}; sweeps are {', '.join(SWEEPS)}")
+            raise ValueError(f"unknown sweep {name!r}; sweeps are {', '.join(SWEEP_NAMES)}")
     return cases
 
 

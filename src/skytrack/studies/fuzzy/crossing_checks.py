@@ -17,6 +17,7 @@ and not less at beta = 10 deg (where, at q = 1, no method swaps in this geometry
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import pandas as pd
 
@@ -158,3 +159,51 @@ def decisions_identical(kept: list[tuple[CrossingCase, dict]], methods=("nn", "m
             if any(not np.array_equal(runs[0], other) for other in runs[1:]):
                 return False
     return True
+
+
+#: the spec's indicative cells (§6 E4, beta = 5 deg, 200 runs): (policy, errors) -> method -> (CAR, swap, broken)
+_NN, _ML = (0.82, 0.26, 0.02), (0.79, 0.39, 0.04)
+SPEC_INDICATIVE: dict[tuple[str, float], dict[str, tuple[float, float, float]]] = {
+    ("track", 0.0): {"nn": _NN, "ml": _ML, "fuzzy": (0.82, 0.25, 0.04), "fuzzy-global": (0.85, 0.17, 0.04),
+                     "crisp": (0.82, 0.25, 0.02)},
+    ("track", 0.2): {"nn": _NN, "ml": _ML, "fuzzy": (0.82, 0.25, 0.04), "fuzzy-global": (0.85, 0.17, 0.04),
+                     "crisp": (0.82, 0.25, 0.02)},
+    ("always", 0.0): {"nn": _NN, "ml": _ML, "fuzzy": (0.985, 0.005, 0.015), "fuzzy-global": (0.993, 0.005, 0.013),
+                      "crisp": (0.991, 0.0, 0.005)},
+    ("always", 0.05): {"nn": _NN, "ml": _ML, "fuzzy": (0.956, 0.05, 0.04), "fuzzy-global": (0.976, 0.02, 0.05),
+                       "crisp": (0.901, 0.0, 0.06)},
+    ("always", 0.1): {"nn": _NN, "ml": _ML, "fuzzy": (0.908, 0.12, 0.09), "fuzzy-global": (0.944, 0.06, 0.10),
+                      "crisp": (0.820, 0.0, 0.20)},
+    ("always", 0.2): {"nn": _NN, "ml": _ML, "fuzzy": (0.849, 0.20, 0.19), "fuzzy-global": (0.879, 0.13, 0.19),
+                      "crisp": (0.680, 0.0, 0.56)},
+    ("always", 0.3): {"nn": _NN, "ml": _ML, "fuzzy": (0.812, 0.19, 0.25), "fuzzy-global": (0.839, 0.15, 0.26),
+                      "crisp": (0.546, 0.0, 0.85)},
+}
+#: the spec's bounds on the standard errors of its indicative cells (200 runs)
+SPEC_SE = {"car": 0.015, "swap": 0.025}
+
+
+def indicative_markdown(table: pd.DataFrame, seed: int,
+                        methods=("nn", "ml", "fuzzy", "fuzzy-global", "crisp")) -> str:
+    """The spec's indicative table with this run's cells beside the spec's (``CAR / swap / broken``).
+
+    A cell is marked ``*`` when CAR or swap differs from the spec's by more than two standard
+    errors of a difference of two independent estimates at the spec's SE bounds
+    (``2 sqrt(2) SE``: 0.042 for CAR, 0.071 for swap)."""
+    runs = int(table["runs"].max())
+    lines = [f"| configuration ({runs} runs, seed {seed}) | " + " | ".join(methods) + " |",
+             "|---|" + "---|" * len(methods)]
+    limits = {k: 2 * math.sqrt(2) * v for k, v in SPEC_SE.items()}
+    for (policy, error), spec_row in SPEC_INDICATIVE.items():
+        cells = []
+        for method in methods:
+            try:
+                row = _at(table, method, policy, error)
+            except KeyError:
+                cells.append("–")
+                continue
+            car, swap, broken = spec_row[method]
+            off = abs(row.car - car) > limits["car"] or abs(row.swap - swap) > limits["swap"]
+            cells.append(f"{row.car:.3f}/{row.swap:.3f}/{row.broken:.3f} ({car:g}/{swap:g}/{broken:g}){' *' if off else ''}")
+        lines.append(f"| policy {policy}, errors {error:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
