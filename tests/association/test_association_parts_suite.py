@@ -53,7 +53,14 @@ def test_scorer_gate_and_miss_cost(name):
         first, second = inside[0], inside[np.flatnonzero(pairs.track[inside] == pairs.track[inside[0]])[-1]]
         np.testing.assert_allclose(scores.cost[second] - scores.cost[first],
                                    -2 * (scores.columns["gain"][second] - scores.columns["gain"][first]))
+    elif name == "ml":
+        # spec 003's ml against a new-object density (here ln beta = -14): inside the gate AND likelier than new
+        scores = scorer.score(innovation, pairs, 40, None, np.full(300, -14.0))
+        better = innovation.loglik > -14.0
+        np.testing.assert_array_equal(scores.inside, gated & better)
+        assert (gated & ~better).any()
     else:
+        # fuzzy and crisp without identity features: exactly the gate (ln mu >= ln mu_new)
         scores = scorer.score(innovation, pairs, 40)
         np.testing.assert_array_equal(scores.inside, gated)
     assert 0 < scores.inside.sum() < 300

@@ -76,3 +76,47 @@ def test_large_clusters_through_the_sparse_solver_equal_the_reference(crossing, 
     tracks = Tracker(crossing.sensors, TrackerConfig()).run(crossing.plots)
     reference = Tracker(crossing.sensors, _reference()).run(crossing.plots)
     pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def crossing_with_iff(crossing):
+    """The crossing scenario's plots with IFF replies: each aircraft friend or foe, 30 % of plots
+    without a reply, 10 % of replies flipped; false plots never reply."""
+    plots = crossing.plots.copy()
+    rng = np.random.default_rng(8)
+    truth = plots["truth_id"].to_numpy()
+    ids = pd.unique(truth[pd.notna(truth)])
+    status = dict(zip(ids, rng.choice(["friend", "foe"], len(ids))))
+    iff = np.array([status.get(t) if pd.notna(t) else None for t in truth], dtype=object)
+    flip = rng.random(len(plots)) < 0.1
+    iff[flip & (iff == "friend")], iff[flip & (iff == "foe")] = "foe", "friend"
+    iff[rng.random(len(plots)) < 0.3] = None
+    plots["iff"] = pd.array(iff, dtype="str")
+    return plots
+
+
+@pytest.mark.parametrize("rule", ["fuzzy", "crisp", "ml", "nn"])
+def test_identity_rules_compiled_equal_the_reference(crossing, crossing_with_iff, rule):
+    """Spec 003's rules in the tracker: the compiled stage's costs (pair_evidence) and the
+    reference scorer (IdentityRuleScorer with the pairs' identity features) give the same tracks."""
+    config = TrackerConfig(association_rule=rule)
+    compiled = Tracker(crossing.sensors, config)
+    tracks = compiled.run(crossing_with_iff)
+    reference = Tracker(crossing.sensors, _reference(association_rule=rule)).run(crossing_with_iff)
+    assert compiled.scan.fused[0]
+    assert len(tracks) > 100
+    pd.testing.assert_frame_equal(tracks, reference, check_exact=False, rtol=1e-9, atol=1e-6)
+    if rule in ("fuzzy", "crisp"):  # the identity terms act: other tracks than coordinates alone
+        coordinates = Tracker(crossing.sensors, TrackerConfig(association_rule="nn")).run(crossing_with_iff)
+        assert not tracks[["x", "y"]].equals(coordinates[["x", "y"]])
+
+
+def test_sequential_mode_takes_plots_one_at_a_time(crossing):
+    """--association-mode sequential: the reference parts plot by plot; the tracks differ from the
+    global assignment's only where plots compete."""
+    sequential = Tracker(crossing.sensors, TrackerConfig(association_rule="nn", association_mode="sequential"))
+    tracks = sequential.run(crossing.plots)
+    assert not sequential.scan.fused[0]
+    glob = Tracker(crossing.sensors, TrackerConfig(association_rule="nn")).run(crossing.plots)
+    assert abs(tracks["track_id"].nunique() - glob["track_id"].nunique()) <= 0.1 * glob["track_id"].nunique()
+    assert len(tracks) > 0.9 * len(glob)

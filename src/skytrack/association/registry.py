@@ -6,10 +6,15 @@ entry here; the tracker's ``association`` configuration section names them.
 
 from __future__ import annotations
 
+from functools import partial
+
 from skytrack.association.gnn import GNNAssigner
+from skytrack.association.identity_scorer import IDENTITY_RULES, IdentityRuleScorer
 from skytrack.association.scoring import LikelihoodRatioScorer, LogLikelihoodScorer, MahalanobisScorer
 
-SCORERS = {"d2": MahalanobisScorer, "loglik": LogLikelihoodScorer, "llr": LikelihoodRatioScorer}
+#: "nn" is spec 003's name of the coordinate-only rule, the Mahalanobis scorer "d2"
+SCORERS = {"d2": MahalanobisScorer, "nn": MahalanobisScorer, "loglik": LogLikelihoodScorer,
+           "llr": LikelihoodRatioScorer, **{rule: partial(IdentityRuleScorer, rule=rule) for rule in IDENTITY_RULES}}
 ASSIGNERS = {"gnn": GNNAssigner}
 
 

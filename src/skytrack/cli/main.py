@@ -172,6 +172,21 @@ def _print_cleaning(cleaning) -> None:
 
 
 # ---------------------------------------------------------------------------- track
+def _association_options(config, rule: str | None, mode: str | None, missing_iff: str | None):
+    """``--association-rule``, ``--association-mode`` and ``--missing-iff`` over the configuration."""
+    from skytrack.association.features import MISSING_IFF_RULES
+    from skytrack.association.registry import SCORERS
+    from skytrack.tracker.scan import ASSOCIATION_MODES
+
+    for option, value, allowed in (("--association-rule", rule, tuple(SCORERS)),
+                                   ("--association-mode", mode, ASSOCIATION_MODES),
+                                   ("--missing-iff", missing_iff, MISSING_IFF_RULES)):
+        if value is not None and value not in allowed:
+            _fail(f"{option}: unknown {value!r}; choose one of {', '.join(allowed)}")
+    given = {"association_rule": rule, "association_mode": mode, "missing_iff": missing_iff}
+    return config.replace(**{name: value for name, value in given.items() if value is not None})
+
+
 @app.command()
 @reports_input_errors
 def track(
@@ -201,6 +216,9 @@ def track(
     chunk_rows: Annotated[int, typer.Option(help="Plots read, validated and tracked per chunk (bounds memory, Parquet and CSV alike).")] = defaults.CHUNK_ROWS,
     filter_kind: Annotated[Optional[str], typer.Option("--filter", help="Filter family: kalman-psi (default: Kalman with the manoeuvre switch), kalman, imm, static-bank, or any registered kind.")] = None,
     model_set: Annotated[Optional[str], typer.Option("--model-set", help="Model set of --filter imm or static-bank: cv-ct-noisy (default), cv-ct, noise-levels; cv-ca, full and cv-ca-singer with --model singer.")] = None,
+    association_rule: Annotated[Optional[str], typer.Option("--association-rule", help="Association rule: llr (default: likelihood ratio against the clutter density), nn (coordinates only), ml, fuzzy (IFF and transponder code through spec 003's membership tables), crisp (identity mismatches forbidden).")] = None,
+    association_mode: Annotated[Optional[str], typer.Option("--association-mode", help="global (default: one assignment per scan) or sequential (plot by plot, spec 003's paper).")] = None,
+    missing_iff: Annotated[Optional[str], typer.Option("--missing-iff", help="Fuzzy rule, plot without IFF reply: undetermined (default, the paper's table) or neutral.")] = None,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
 ) -> None:
@@ -231,6 +249,7 @@ def track(
         config = config.replace(filter_kind=filter_kind)
     if model_set is not None:
         config = config.replace(model_set=model_set)
+    config = _association_options(config, association_rule, association_mode, missing_iff)
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:

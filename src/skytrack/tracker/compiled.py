@@ -1,7 +1,7 @@
 """The compiled path of the scan processor for the common case (a mixin of ScanProcessor).
 
 It applies when :func:`fused_cv_q` finds a compiled Kalman filter (plain or with the psi
-switch) on a constant-velocity model with the same noise on every axis, the ``d2`` scorer and
+switch) on a constant-velocity model with the same noise on every axis, a compiled scorer and
 the ``gnn`` assigner, for a ground radar without range rate.  A rotating radar's window is then
 expectations (:func:`~skytrack.tracker.window_kernels.expect_rotating`), every association stage
 (:func:`~skytrack.tracker.stage_kernel.stages_cv`) and the end of the window
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from skytrack.association.features import FeatureTables
 from skytrack.association.gnn import MAX_DENSE_CLUSTER
 from skytrack.core.plots import PlotBatch
 from skytrack.filters.base import GaussianState, MixtureState
@@ -32,8 +33,24 @@ from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batc
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.imm_stage_kernel import stage_imm
-from skytrack.tracker.stage_kernel import stage_cv, stages_cv
+from skytrack.tracker.stage_kernel import (COST_RULE_SIZE, RULE_CRISP, RULE_FUZZY, RULE_LLR, RULE_ML, RULE_NN, stage_cv,
+                                           stages_cv)
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage, record_and_manage
+
+#: scorers whose costs the compiled stages compute (:func:`~skytrack.tracker.stage_kernel.pair_evidence`)
+COMPILED_SCORERS = {"d2": RULE_NN, "nn": RULE_NN, "llr": RULE_LLR, "fuzzy": RULE_FUZZY, "crisp": RULE_CRISP,
+                    "ml": RULE_ML}
+
+
+def cost_rule_vector(scorer: str, tables: FeatureTables) -> np.ndarray:
+    """The compiled stages' cost rule: its kind, the fuzzy ``ln mu_G`` table (3 x 4) and ``ln mu_N``
+    for a match and a mismatch (:func:`~skytrack.tracker.stage_kernel.identity_log_membership`)."""
+    vector = np.zeros(COST_RULE_SIZE)
+    vector[0] = COMPILED_SCORERS.get(scorer, RULE_NN)
+    vector[1:13] = tables.log_g.reshape(-1)
+    vector[13:15] = tables.log_n
+    return vector
+
 
 class CompiledStages:
     """Compiled counterparts of :class:`~skytrack.tracker.scan.ScanProcessor`'s steps."""
@@ -101,7 +118,7 @@ class CompiledStages:
             memory, self.config.initiation.method == "two-point", nis_avg, filter_updates, columns["n_updates"],
             columns["n_misses"], columns["z_hint"], columns["status"], columns["mode3a"], columns["icao24"],
             columns["iff"], columns["identity"], plots.mode3a, plots.mode_s, plots.iff,
-            *self.scoring.clutter_arguments(s), self.llr_cost,
+            *self.scoring.clutter_arguments(s), self.cost_rule,
             self.scoring.log_pd[s], self.scoring.log_miss[s], self._evidence[0], columns["score"], columns["score_max"],
         )
 
@@ -225,13 +242,13 @@ class CompiledStages:
         (plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, _, dim, search_scale, margin_s, gate,
          replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, _, _, _, _,
          two_point, _, _, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s,
-         plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max) = arguments
+         plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max) = arguments
         rows, plot_rows, candidates = stage_imm(
             tracks, free, storage.x, storage.P, storage.mu, columns["t"], columns["alt_m"], forced, modes, sojourn,
             fixed, t_ref, plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, dim, search_scale,
             margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             two_point, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s,
-            plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max,
+            plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max,
         )
         self.stats["candidate_pairs"] += candidates
         if manoeuvre:
@@ -243,12 +260,13 @@ def fused_imm(filter, association) -> tuple | None:
     """``(modes, sojourn, fixed)`` for :func:`~skytrack.tracker.imm_stage_kernel.stage_imm` when the
     compiled IMM stage applies: an IMM whose modes are all continuous-noise CV/CT models
     (:func:`skytrack.filters.imm_kernels.mode_table`), no recorder, and the compiled GNN association
-    with the d2 or llr scorer."""
+    with a scorer of :data:`COMPILED_SCORERS` in global mode."""
     if not isinstance(filter, IMMFilter) or filter._modes is None or filter.recorder.active:
         return None
     if any(mode.recorder.active or mode.form != "joseph" for mode in filter.modes):
         return None
-    if not (association.compiled and association.scorer in ("d2", "llr") and association.assigner == "gnn"):
+    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
+            and association.mode == "global"):
         return None
     M = filter.n_modes
     if isinstance(filter.transition, SojournTransition):
@@ -260,8 +278,8 @@ def fused_cv_q(filter, association) -> float | None:
     """The CV process-noise PSD when the compiled stage applies to this filter and association, else None.
 
     It applies to compiled Kalman filters (plain or with the psi switch) in Joseph form on a
-    constant-velocity model with the same noise on every axis, with the d2 or llr scorer and the
-    GNN assigner.
+    constant-velocity model with the same noise on every axis, with a scorer of :data:`COMPILED_SCORERS`
+    and the GNN assigner in global mode.
     """
     kalman = getattr(filter, "kalman", filter)
     if not (isinstance(kalman, KalmanFilter) and kalman.compiled and kalman.form == "joseph"):
@@ -272,6 +290,7 @@ def fused_cv_q(filter, association) -> float | None:
     axis = motion.axes[0]
     if not (motion.identical_axes and type(axis) is ConstantVelocityAxis):
         return None
-    if not (association.compiled and association.scorer in ("d2", "llr") and association.assigner == "gnn"):
+    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
+            and association.mode == "global"):
         return None
     return float(axis.q)

@@ -143,8 +143,10 @@ FLAT_NAMES: dict[str, tuple[str, str]] = {
     "init": ("initiation", "method"),
     "init_sigma_v": ("initiation", "sigma_v"),
     "filter_kind": ("filter", "kind"),
+    "association_rule": ("association", "scorer"),
+    "association_mode": ("association", "mode"),
 }
-for _section_field in ("method", "sigma_v", "kind"):
+for _section_field in ("method", "sigma_v", "kind", "mode"):
     FLAT_NAMES.pop(_section_field)
 
 

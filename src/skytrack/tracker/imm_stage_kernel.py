@@ -279,15 +279,16 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
               plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
               replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, two_point,
               n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff,
-              clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
+              clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, logdet, position, covariance, mixed_x, mixed_P, mixed_c, candidates = gate_stage_imm(
         tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref, plot_time,
         plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
     gain, cost, offered, miss_cost = pair_evidence(
-        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
-        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
+        tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
+        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
+        iff, plot_iff, icao24, plot_mode_s)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
     pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
     track_of_pair = kt[pick]

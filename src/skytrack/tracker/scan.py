@@ -34,6 +34,8 @@ import numpy as np
 from skytrack.association.grid_kernels import grid_candidates
 from skytrack.association.base import Pairs
 from skytrack.association.candidates import candidate_pairs
+from skytrack.association.features import FeatureTables
+from skytrack.association.identity_scorer import IDENTITY_RULES, PairFeatures
 from skytrack.association.registry import build_assigner, build_scorer
 from skytrack.core.linalg import max_eigenvalue_sym
 from skytrack.core.plots import PlotBatch
@@ -42,7 +44,7 @@ from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.height import bounded_height
-from skytrack.tracker.compiled import CompiledStages, fused_cv_q, fused_imm
+from skytrack.tracker.compiled import CompiledStages, cost_rule_vector, fused_cv_q, fused_imm
 from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
 from skytrack.tracker.evidence import TrackScoring, ssr_log_ratio_reference
 from skytrack.tracker.identity import initial_identity, remember_replies_reference
@@ -50,6 +52,7 @@ from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.schedule import Schedule
 
+ASSOCIATION_MODES = ("global", "sequential")
 #: search-radius safety factor over the exact Mahalanobis bound
 RADIUS_FACTOR = 1.05
 
@@ -57,17 +60,27 @@ RADIUS_FACTOR = 1.05
 @dataclass
 class AssociationConfig:
     """Gate probability ``p_gate`` (threshold: chi-square quantile for the measured components,
-    spec 000 R7) or a fixed ``gate_threshold``; ``scorer`` ("llr": likelihood ratio against the
-    local clutter density, the default; "d2"; "loglik") and ``assigner`` by registered name;
-    ``compiled`` selects the numba kernels (False: the numpy/scipy reference)."""
+    spec 000 R7) or a fixed ``gate_threshold``; ``scorer`` — the association rule — and ``assigner``
+    by registered name: "llr" (likelihood ratio against the local clutter density, the default),
+    "nn" (= "d2", coordinate-only nearest neighbour), "loglik", and spec 003's "fuzzy" (identity
+    features through the membership tables; ``missing_iff`` is their rule for a plot without an
+    IFF reply), "crisp" (identity vetoes) and "ml" (Gaussian likelihood against the clutter
+    density); ``mode`` "global" (one assignment per stage) or "sequential" (spec 003's plot-by-plot
+    processing: each plot, in time order, takes its best track, which is updated before the next
+    plot; a track may take several plots of a window); ``compiled`` selects the numba kernels
+    (False: the numpy/scipy reference)."""
 
     p_gate: float = 0.9995
     gate_threshold: float | None = None
     scorer: str = "llr"
     assigner: str = "gnn"
+    mode: str = "global"
+    missing_iff: str = "undetermined"
     compiled: bool = True
 
     def __post_init__(self) -> None:
+        if self.mode not in ASSOCIATION_MODES:
+            raise ValueError(f"association mode must be one of {', '.join(ASSOCIATION_MODES)}, got {self.mode!r}")
         if not 0.0 < self.p_gate < 1.0:
             raise ValueError(f"p_gate must be in (0, 1), got {self.p_gate}")
         if self.gate_threshold is not None and not self.gate_threshold > 0:
@@ -129,10 +142,15 @@ class ScanProcessor(CompiledStages):
         self.next_track_id = 1
         assoc = config.association
         options = {"p_gate": assoc.p_gate, "threshold": assoc.gate_threshold, "max_components": dim + 1}
+        tables = FeatureTables(missing_iff=assoc.missing_iff)
+        if assoc.scorer in IDENTITY_RULES:
+            options["tables"] = tables
         self.scorer = build_scorer(assoc.scorer, **options)
+        self.cost_rule = cost_rule_vector(assoc.scorer, tables)
         self.assigner = build_assigner(assoc.assigner, compiled=assoc.compiled) if assoc.assigner == "gnn" \
             else build_assigner(assoc.assigner)
         self.llr_cost = assoc.scorer == "llr"
+        self.sequential = assoc.mode == "sequential"
         self.scoring = TrackScoring(config.score, sensors.sensors, schedule.period, dim, config.lifecycle.delete_misses)
         self.manoeuvre_gate = getattr(filter, "supports_manoeuvre_gate", False)
         geometry = config.geometry
@@ -276,6 +294,24 @@ class ScanProcessor(CompiledStages):
             return self._associate_fused(s, tracks, free, t_ref, plots, converted, manoeuvre)
         if self.fused_imm_sensor[s]:
             return self._associate_fused_imm(s, tracks, free, t_ref, plots, converted, manoeuvre)
+        if self.sequential and len(free) > 1:
+            return self._associate_sequential(s, tracks, free, t_ref, plots, converted, manoeuvre)
+        return self._associate_pairs(s, tracks, free, t_ref, plots, converted, manoeuvre)
+
+    def _associate_sequential(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots,
+                              manoeuvre: bool):
+        """Spec 003's plot-by-plot processing (R11 greedy): each plot in time order (ties in input
+        order) is scored against the stage's tracks as they are after the plots before it, takes
+        its best one, and that track is updated at once; a track may take several plots."""
+        taken_tracks, taken_plots = [], []
+        for j in free[np.argsort(plots.time[free], kind="stable")]:
+            ti, pj = self._associate_pairs(s, tracks, np.array([j]), t_ref, plots, converted, manoeuvre)
+            taken_tracks.append(ti)
+            taken_plots.append(pj)
+        return np.concatenate(taken_tracks), np.concatenate(taken_plots)
+
+    def _associate_pairs(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots, manoeuvre: bool):
+        """The composed parts of one stage (or, in sequential mode, of one plot)."""
         bank = self.bank
         dim = self.dim
         context = {"manoeuvre": True} if manoeuvre else None
@@ -309,6 +345,11 @@ class ScanProcessor(CompiledStages):
         evidence = self._pair_evidence(s, ti, pj, plots)
         if self.llr_cost:
             scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank), evidence, self.scoring.log_miss[s])
+        elif getattr(self.scorer, "uses_identity", False):
+            features = PairFeatures.from_codes(bank.iff[ti], plots.iff[pj], bank.mode3a[ti], plots.mode3a[pj],
+                                               bank.icao24[ti], plots.mode_s[pj])
+            log_clutter = self.scoring.maps[s].log_density(plots.range_m[pj], plots.azimuth[pj])
+            scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank), features, log_clutter)
         else:
             scores = self.scorer.score(innovation, Pairs(ti, pj), len(bank))
         chosen = self.assigner.assign(scores, len(bank), len(plots))

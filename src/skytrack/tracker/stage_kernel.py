@@ -7,7 +7,8 @@ and :func:`skytrack.tracker.kernels.update_write_cv` (Kalman update, psi switch,
 columns) so that a stage costs one dispatch from Python; :func:`stages_cv` runs every stage of
 a window in one call.  Between gate and assignment, :func:`pair_evidence` gives each pair its
 score gain and cost (:mod:`skytrack.tracker.evidence`): ``d^2`` with the gate as the cost of a
-miss, or (``llr_cost``) the log-likelihood ratio against a miss, pairs worse than a miss left out.
+miss (nn), the log-likelihood ratio against a miss (llr), or one of spec 003's rules (fuzzy, crisp,
+ml: :mod:`skytrack.association.identity_scorer`), pairs worse than the alternative left out.
 """
 
 from __future__ import annotations
@@ -18,6 +19,10 @@ from numba import njit
 from skytrack.association.kernels import assign_clusters
 from skytrack.tracker.clutter_map import log_density_at
 from skytrack.tracker.evidence import LOG_2PI, ssr_log_ratio
+
+#: kinds of association cost (the first entry of the cost-rule vector)
+RULE_NN, RULE_LLR, RULE_FUZZY, RULE_CRISP, RULE_ML = 0.0, 1.0, 2.0, 3.0, 4.0
+COST_RULE_SIZE = 15
 from skytrack.tracker.kernels import gate_stage_cv, update_write_cv
 
 
@@ -27,15 +32,16 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
              margin_s, gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
              psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
              z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff, clutter_grid,
-             clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max):
+             clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max):
     """Returns the bank rows and plot rows updated, and the number of candidate pairs."""
     kt, kp, d2, logdet, position, covariance, candidates = gate_stage_cv(
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
     gain, cost, offered, miss_cost = pair_evidence(
-        tracks, free, kt, kp, d2, logdet, ndim, miss, llr_cost, log_pd, log_miss, clutter_grid, clutter_params,
-        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all)
+        tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
+        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
+        iff, plot_iff, icao24, plot_mode_s)
     chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
     pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
     update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
@@ -57,35 +63,73 @@ def chosen_rows(offered, chosen, kt, kp, tracks, free):
     return pick, rows, plot_rows
 
 
+@njit(cache=True, nogil=True, inline="always")
+def identity_log_membership(track_iff, plot_iff, track_mode3a, plot_mode3a, track_mode_s, plot_mode_s, cost_rule):
+    """``ln(mu_G mu_N)`` of one pair for the fuzzy rule, or 0 / ``-inf`` (the veto) for the crisp one
+    (:mod:`skytrack.association.identity_scorer`; the number is the Mode S address when both have one)."""
+    if track_mode_s >= 0 and plot_mode_s >= 0:
+        h_n, z_n = track_mode_s + 4096, plot_mode_s + 4096
+    else:
+        h_n, z_n = track_mode3a, plot_mode3a
+    if cost_rule[0] == RULE_CRISP:
+        definite = track_iff >= 0 and track_iff != 2 and plot_iff >= 0 and plot_iff != 2
+        if (definite and track_iff != plot_iff) or (h_n >= 0 and z_n >= 0 and h_n != z_n):
+            return -np.inf
+        return 0.0
+    h_g = 2 if track_iff < 0 else track_iff
+    z_g = 3 if plot_iff < 0 else plot_iff
+    total = cost_rule[1 + 4 * h_g + z_g]
+    if h_n >= 0 and z_n >= 0:
+        total += cost_rule[13] if h_n == z_n else cost_rule[14]
+    return total
+
+
 @njit(cache=True, nogil=True)
-def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate_miss, llr_cost, log_pd, log_miss, clutter_grid,
+def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate, gate_miss, cost_rule, log_pd, log_miss, clutter_grid,
                   clutter_params, clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c,
-                  mode3a, alt_m, t):
+                  mode3a, alt_m, t, track_iff, plot_iff, track_mode_s, plot_mode_s):
     """Per gated pair: the score gain of a hit, the assignment cost, the pairs offered to the
     assignment (indices) and the cost of a miss per track (see the module docstring).
 
-    With ``llr_cost`` the cost of pair (i, j) is ``-2 (gain_ij - ln(1 - P_D))``; pairs with a cost
-    >= 0 are not offered, and each track's costs are shifted by its cheapest pair so that they
-    are >= 0 (the assignment's shortest paths need that; a track takes one pair or its miss, so
-    the shift does not change the choice): the miss then costs minus that cheapest cost."""
+    ``cost_rule`` (:func:`skytrack.tracker.scan.cost_rule_vector`): its kind, then the fuzzy
+    rule's ``ln mu_G`` table (3 x 4, the last column a plot without reply) and ``ln mu_N`` for a
+    match and a mismatch.  Costs: ``d2`` (nn) with the gate as the miss; otherwise a pair's cost
+    against the alternative of its plot being new or false and its track missed — the likelihood
+    ratio ``-2 (gain_ij - ln(1 - P_D))`` (llr), ``-2 (ln N - ln beta_j)`` (ml), ``d^2 - gamma - 2
+    ln(mu_G mu_N)`` (fuzzy, crisp) — where only pairs below 0 (llr, ml) or at most 0 (fuzzy,
+    crisp) are offered, and each track's costs are shifted by its cheapest pair so that they are
+    >= 0 (the assignment's shortest paths need that; a track takes one pair or its miss, so the
+    shift does not change the choice): the miss then costs minus that cheapest cost."""
     count = len(kt)
     gain = np.empty(count)
     cost = np.empty(count)
+    kind = cost_rule[0]
     for c in range(count):
         row = tracks[kt[c]]
         j = free[kp[c]]
         evidence = ssr_log_ratio(plot_mode3a[j], plot_mode_c[j], mode3a[row], alt_m[row], plot_time[j] - t[row], ssr)
         log_clutter = log_density_at(plot_range[j], plot_azimuth[j], clutter_grid, clutter_params, clutter_log_area)
-        gain[c] = log_pd - 0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI) - log_clutter + evidence
-        cost[c] = -2.0 * (gain[c] - log_miss) if llr_cost else d2[c]
+        log_gaussian = -0.5 * (d2[c] + logdet[c] + ndim * LOG_2PI)
+        gain[c] = log_pd + log_gaussian - log_clutter + evidence
+        if kind == RULE_LLR:
+            cost[c] = -2.0 * (gain[c] - log_miss)
+        elif kind == RULE_NN:
+            cost[c] = d2[c]
+        elif kind == RULE_ML:
+            cost[c] = -2.0 * (log_gaussian - log_clutter)
+        else:
+            cost[c] = d2[c] - gate - 2.0 * identity_log_membership(
+                track_iff[row], plot_iff[j], mode3a[row], plot_mode3a[j], track_mode_s[row], plot_mode_s[j], cost_rule)
     miss_cost = np.full(len(tracks), gate_miss)
-    if not llr_cost:
+    if kind == RULE_NN:
         return gain, cost, np.arange(count), miss_cost
+    # fuzzy and crisp offer a tie with the new object (cost 0): a track beats "new" (spec 003 R12)
+    bound = 1e-300 if kind == RULE_FUZZY or kind == RULE_CRISP else 0.0
     cheapest = np.zeros(len(tracks))
     offered = np.empty(count, np.int64)
     m = 0
     for c in range(count):
-        if cost[c] < 0.0:
+        if cost[c] < bound:
             cheapest[kt[c]] = min(cheapest[kt[c]], cost[c])
             offered[m] = c
             m += 1
@@ -101,7 +145,7 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a,
-              plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max, plot_stage):
+              plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max, plot_stage):
     """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
     ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
@@ -148,7 +192,7 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
             gate, replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense,
             psi_enabled, psi_on, psi_off, psi_memory, two_point, nis_avg, filter_updates, n_updates, n_misses,
             z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff, clutter_grid,
-            clutter_params, clutter_log_area, llr_cost, log_pd, log_miss, ssr, score, score_max)
+            clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max)
         candidates += found
         for c in range(len(rows)):
             hit[rows[c]] = True
