@@ -68,10 +68,13 @@ SOURCE_MODE_S, SOURCE_IFF = IDENTITY_SOURCES.index("mode_s"), IDENTITY_SOURCES.i
 
 
 # ---------------------------------------------------------------------------- replies of a hit
+# The compiled writers call these two directly (numba inlines one level of inline="always"
+# functions; a helper calling them cost 40 ns per hit instead of 2).
 @njit(cache=True, nogil=True, inline="always")
-def _remember_code(identity, k, base, current, code):
-    """Count plot code ``code >= 0`` of track row ``k`` in the slots from ``base``; returns the
-    track's new code (the plot's: the latest reply wins)."""
+def remember_code(identity, k, base, current, code):
+    """R14 for a plot code ``code >= 0`` (Mode 3/A: ``base`` = MODE3A_N, Mode S: ICAO24_N) of
+    track row ``k`` whose code is ``current``: counts it in the slots from ``base`` and returns
+    the track's new code (the plot's: the latest reply wins)."""
     if code == current:
         identity[k, base] += 1
     elif code == identity[k, base + 1]:
@@ -90,18 +93,14 @@ def _remember_code(identity, k, base, current, code):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def remember_replies(identity, k, mode3a, icao24, iff, reply_mode3a, reply_mode_s, reply_iff):
-    """R14 for one hit of track row ``k`` by a plot carrying ``reply_*`` (``-1``: none), with the
-    counts of :data:`IDENTITY_DEFAULT`'s layout (inlined into the compiled writers)."""
-    if reply_iff == 0 or reply_iff == 1:
-        identity[k, N_FRIEND + reply_iff] += 1
-        iff[k] = reply_iff
-    elif reply_iff == 2 and iff[k] < 0:
+def remember_status(identity, k, iff, reply):
+    """R14 for an IFF reply ``reply`` (-1 none) of track row ``k``: a definite one is counted and
+    becomes the track's status; ``undetermined`` fills a track without one."""
+    if reply == 0 or reply == 1:
+        identity[k, N_FRIEND + reply] += 1
+        iff[k] = reply
+    elif reply == 2 and iff[k] < 0:
         iff[k] = 2
-    if reply_mode3a >= 0:
-        mode3a[k] = _remember_code(identity, k, MODE3A_N, mode3a[k], reply_mode3a)
-    if reply_mode_s >= 0:
-        icao24[k] = _remember_code(identity, k, ICAO24_N, icao24[k], reply_mode_s)
 
 
 def initial_identity(reply_mode3a: np.ndarray, reply_mode_s: np.ndarray, reply_iff: np.ndarray) -> np.ndarray:
@@ -116,7 +115,8 @@ def initial_identity(reply_mode3a: np.ndarray, reply_mode_s: np.ndarray, reply_i
 
 def remember_replies_reference(bank, rows: np.ndarray, reply_mode3a: np.ndarray, reply_mode_s: np.ndarray,
                                reply_iff: np.ndarray) -> None:
-    """:func:`remember_replies` for hits of distinct bank ``rows`` at once (numpy reference)."""
+    """:func:`remember_status` and :func:`remember_code` for hits of distinct bank ``rows`` at
+    once (numpy reference)."""
     identity = bank.identity
     definite = (reply_iff == 0) | (reply_iff == 1)
     hit_rows, status = rows[definite], reply_iff[definite].astype(np.intp)
@@ -146,37 +146,79 @@ def remember_replies_reference(bank, rows: np.ndarray, reply_mode3a: np.ndarray,
 
 
 # ---------------------------------------------------------------------------- confidence
-def code_probability(a: np.ndarray, b: np.ndarray, other: np.ndarray, values: int, error_p: float) -> np.ndarray:
-    """Posterior that the shown value is the true one (module docstring): ``a`` replies of the
-    shown value, ``b`` of the previous one, ``other`` of others, ``values`` = K (2, 4096, 2^24)."""
-    log_rho = np.log1p(-error_p) + np.log(values - 1.0) - np.log(error_p)
-    a = np.asarray(a, dtype=float)
-    with np.errstate(over="ignore"):
-        rest = np.exp((np.asarray(b) - a) * log_rho)
-        if values > 2:
-            rest = rest + np.exp((np.asarray(other) - a) * log_rho) + (values - 3.0) * np.exp(-a * log_rho)
+#: a term of the posterior's denominator below e^-40 cannot change ``1 + terms`` in float64
+_NEGLIGIBLE_LOG = -40.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _shown_probability(a, b, other, log_rest, log_rho):
+    """Posterior that the shown value is the true one (module docstring) in the overflow-safe
+    form ``1 / (1 + rho^(b - a) + rho^(o - a) + (K - 3) rho^-a)``: ``a`` replies of the shown
+    value, ``b`` of the previous one, ``other`` of others, ``log_rest`` = ln(K - 3) (None for
+    K = 2: ``1 / (1 + rho^(b - a))``)."""
+    # terms below e^-40 cannot change 1 + rest: skipped (most tracks have many agreeing replies)
+    rest = 0.0
+    exponent = (b - a) * log_rho
+    if exponent > _NEGLIGIBLE_LOG:
+        rest += np.exp(exponent)
+    if log_rest is not None:
+        exponent = (other - a) * log_rho
+        if exponent > _NEGLIGIBLE_LOG:
+            rest += np.exp(exponent)
+        exponent = log_rest - a * log_rho
+        if exponent > _NEGLIGIBLE_LOG:
+            rest += np.exp(exponent)
     return 1.0 / (1.0 + rest)
 
 
+_LOG_REST_MODE3A = float(np.log(MODE3A_CODES - 3.0))
+_LOG_REST_MODE_S = float(np.log(MODE_S_ADDRESSES - 3.0))
+
+
+@njit(cache=True, nogil=True)
+def identity_rows(identity, mode3a, icao24, iff, rows, log_rho, source, p):
+    """``identity_source`` codes and ``identity_p`` of bank ``rows`` into ``source``, ``p``;
+    ``log_rho`` = :func:`log_rho` of IFF, Mode 3/A and Mode S (compiled; the output kernels
+    call it on the reported rows)."""
+    for c in range(len(rows)):
+        r = rows[c]
+        probability = 1.0
+        status = iff[r]
+        definite = status == 0 or status == 1
+        if definite:
+            probability *= _shown_probability(identity[r, N_FRIEND + status], identity[r, N_FOE - status], 0, None,
+                                              log_rho[0])
+        if mode3a[r] >= 0:
+            probability *= _shown_probability(identity[r, MODE3A_N], identity[r, MODE3A_ALT_N],
+                                              identity[r, MODE3A_OTHER], _LOG_REST_MODE3A, log_rho[1])
+        if icao24[r] >= 0:
+            probability *= _shown_probability(identity[r, ICAO24_N], identity[r, ICAO24_ALT_N],
+                                              identity[r, ICAO24_OTHER], _LOG_REST_MODE_S, log_rho[2])
+            source[c] = SOURCE_MODE_S
+        elif mode3a[r] >= 0 or definite:
+            source[c] = SOURCE_IFF
+        else:
+            source[c] = -1
+        p[c] = probability if source[c] >= 0 else np.nan
+
+
+def log_rho(error_p: float) -> np.ndarray:
+    """``ln rho`` of IFF, Mode 3/A and Mode S: the log odds one agreeing reply adds,
+    ``ln((1 - eps) (K - 1) / eps)``."""
+    values = np.array([IFF_STATUSES, MODE3A_CODES, MODE_S_ADDRESSES], dtype=float)
+    return np.log1p(-error_p) + np.log(values - 1.0) - np.log(error_p)
+
+
 def identity_probability(identity: np.ndarray, mode3a: np.ndarray, icao24: np.ndarray, iff: np.ndarray,
-                         error_p: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(identity_source, identity_p)`` of tracks: the source code per row (index into
-    :data:`IDENTITY_SOURCES`, -1 = none) and the product of the shown attributes' posteriors
-    (NaN without a source)."""
-    p = np.ones(len(iff))
-    definite = (iff == 0) | (iff == 1)
-    if definite.any():
-        shown = np.where(iff == 1, identity[:, N_FOE], identity[:, N_FRIEND])
-        opposite = np.where(iff == 1, identity[:, N_FRIEND], identity[:, N_FOE])
-        p = np.where(definite, p * code_probability(shown, opposite, 0, IFF_STATUSES, error_p), p)
-    for column, base, values in ((mode3a, MODE3A_N, MODE3A_CODES), (icao24, ICAO24_N, MODE_S_ADDRESSES)):
-        known = column >= 0
-        if known.any():
-            posterior = code_probability(identity[:, base], identity[:, base + 2], identity[:, base + 3], values,
-                                         error_p)
-            p = np.where(known, p * posterior, p)
-    source = np.where(icao24 >= 0, SOURCE_MODE_S, np.where((mode3a >= 0) | definite, SOURCE_IFF, -1)).astype(np.int8)
-    return source, np.where(source >= 0, p, np.nan)
+                         error_p: float, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(identity_source, identity_p)`` of tracks (of ``rows``, default all): the source code per
+    row (index into :data:`IDENTITY_SOURCES`, -1 = none) and the product of the shown attributes'
+    posteriors (NaN without a source)."""
+    rows = np.arange(len(iff)) if rows is None else np.asarray(rows, dtype=np.int64)
+    source = np.empty(len(rows), np.int8)
+    p = np.empty(len(rows))
+    identity_rows(identity, mode3a, icao24, iff, rows, log_rho(error_p), source, p)
+    return source, p
 
 
 def source_text(source: np.ndarray):
@@ -196,12 +238,19 @@ def changed_rows(bank, confirmed: np.ndarray) -> np.ndarray:
     return np.flatnonzero(changed & confirmed)
 
 
+#: the fields the tracker records (callsign: issue 9), their shown_* columns, field and source codes
+_SHOWN_COLUMNS = [SHOWN_ICAO24, SHOWN_MODE3A, SHOWN_IFF]
+_RECORDED_FIELDS = np.array([EVENT_FIELDS.index(name) for name in ("icao24", "mode3a", "iff")], np.int8)
+_RECORDED_SOURCES = np.array([SOURCE_MODE_S, SOURCE_IFF, SOURCE_IFF], np.int8)
+
+
 class IdentityEvents:
     """The identity-change rows found so far (docs/formats.md "identity events"), kept as
     arrays until :meth:`drain` makes them a table."""
 
     def __init__(self, error_p: float) -> None:
         self.error_p = error_p
+        self.log_rho = log_rho(error_p)
         self.parts: list[dict[str, np.ndarray]] = []
         self.count = 0
 
@@ -209,26 +258,22 @@ class IdentityEvents:
         """One row per changed field of bank ``rows``; the rows then show their current values."""
         if len(rows) == 0:
             return
-        identity = bank.identity
-        mode3a, icao24, iff = bank.mode3a[rows], bank.icao24[rows], bank.iff[rows]
-        _, p = identity_probability(identity[rows], mode3a, icao24, iff, self.error_p)
-        time, track_id = bank.t[rows], bank.track_id[rows]
-        for field, shown_index, new, source in (("icao24", SHOWN_ICAO24, icao24, SOURCE_MODE_S),
-                                                ("mode3a", SHOWN_MODE3A, mode3a, SOURCE_IFF),
-                                                ("iff", SHOWN_IFF, iff, SOURCE_IFF)):
-            old = identity[rows, shown_index]
-            changed = old != new
-            if changed.any():
-                self.parts.append({
-                    "time": time[changed], "track_id": track_id[changed],
-                    "field": np.full(int(changed.sum()), EVENT_FIELDS.index(field), np.int8),
-                    "old": old[changed].astype(np.int64), "new": new[changed].astype(np.int64),
-                    "source": np.full(int(changed.sum()), source, np.int8), "identity_p": p[changed],
-                })
-                self.count += int(changed.sum())
-        identity[rows, SHOWN_MODE3A] = mode3a
-        identity[rows, SHOWN_ICAO24] = icao24
-        identity[rows, SHOWN_IFF] = iff
+        identity = bank.identity[rows]
+        # columns in the order of _RECORDED: icao24, mode3a, iff
+        current = np.column_stack([bank.icao24[rows], bank.mode3a[rows], bank.iff[rows]]).astype(np.int32)
+        shown = identity[:, _SHOWN_COLUMNS]
+        row, column = np.nonzero(current != shown)
+        p = np.empty(len(rows))
+        identity_rows(bank.identity, bank.mode3a, bank.icao24, bank.iff, rows, self.log_rho, np.empty(len(rows), np.int8),
+                      p)
+        self.parts.append({
+            "time": bank.t[rows][row], "track_id": bank.track_id[rows][row], "field": _RECORDED_FIELDS[column],
+            "old": shown[row, column].astype(np.int64), "new": current[row, column].astype(np.int64),
+            "source": _RECORDED_SOURCES[column], "identity_p": p[row],
+        })
+        self.count += len(row)
+        identity[:, _SHOWN_COLUMNS] = current
+        bank.identity[rows] = identity
 
     def drain(self):
         """The rows found since the last drain as a pyarrow Table in time order (ties: track

@@ -27,7 +27,7 @@ from numba import njit
 
 from skytrack.association.grid_kernels import search_grid, spread_classes
 from skytrack.models.conversion_kernels import place_2d
-from skytrack.tracker.identity import remember_replies
+from skytrack.tracker.identity import ICAO24_N, MODE3A_N, remember_code, remember_status
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -361,7 +361,7 @@ def write_hits(rows, plot_rows, heights, gains, t, n_updates, n_misses, score, s
     """The bank columns of tracks ``rows`` after their hits by plots ``plot_rows``
     (:meth:`ScanProcessor._write_updates`): time, counts, score (``gains``), the plots' heights,
     and the Mode C, Mode 3/A, Mode S and IFF they carry (spec 003 R14 and the reply counts:
-    :func:`skytrack.tracker.identity.remember_replies`).  One call per stage, after the state
+    :mod:`skytrack.tracker.identity`).  One call per stage, after the state
     updates: called per hit, the array arguments cost more than the writes."""
     for c in range(len(rows)):
         k = rows[c]
@@ -374,7 +374,11 @@ def write_hits(rows, plot_rows, heights, gains, t, n_updates, n_misses, score, s
         z_hint[k] = heights[c]
         if np.isfinite(plot_mode_c[j]):
             alt_m[k] = plot_mode_c[j]
-        remember_replies(identity, k, mode3a, icao24, iff, plot_mode3a[j], plot_mode_s[j], plot_iff[j])
+        remember_status(identity, k, iff, plot_iff[j])
+        if plot_mode3a[j] >= 0:
+            mode3a[k] = remember_code(identity, k, MODE3A_N, mode3a[k], plot_mode3a[j])
+        if plot_mode_s[j] >= 0:
+            icao24[k] = remember_code(identity, k, ICAO24_N, icao24[k], plot_mode_s[j])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -98,18 +98,22 @@ class OutputClock:
 
 
 def instant_record(instant: float, rows: np.ndarray, x: np.ndarray, P: np.ndarray, bank: TrackBank,
-                   full_covariance: bool, model_probs: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                   full_covariance: bool, model_probs: np.ndarray | None = None,
+                   identity_error_p: float = DEFAULT_ERROR_P) -> dict[str, np.ndarray]:
     """What one output instant contributes: the bank's rows ``rows`` with states ``x``, ``P`` at
     ``instant``, kept compact (variances, or the covariance's upper triangle) until
     :func:`build_table` makes the table's columns for a whole drain at once.  ``model_probs``
-    ``[K, M]``: a multiple-model filter's model probabilities."""
+    ``[K, M]``: a multiple-model filter's model probabilities; ``identity_error_p`` the per-reply
+    error probability behind ``identity_p``."""
     n = x.shape[1]
+    source, identity_p = identity_probability(bank.identity, bank.mode3a, bank.icao24, bank.iff, identity_error_p,
+                                              rows)
     record = {
         "time": np.full(len(rows), instant), "track_id": bank.track_id[rows], "x": x,
         "var": np.diagonal(P, axis1=1, axis2=2), "n_updates": bank.n_updates[rows],
         "n_misses": bank.n_misses[rows], "alt_m": bank.alt_m[rows], "z_hint": bank.z_hint[rows],
         "mode3a": bank.mode3a[rows], "icao24": bank.icao24[rows], "iff": bank.iff[rows],
-        "identity": bank.identity[rows],
+        "identity_source": source, "identity_p": identity_p,
     }
     if full_covariance:
         iu, ju = np.triu_indices(n)
@@ -166,8 +170,7 @@ def _status_text(coasting: np.ndarray):
 
 
 def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, origin,
-                model_names: tuple[str, ...] | None = None,
-                identity_error_p: float = DEFAULT_ERROR_P) -> dict[str, object]:
+                model_names: tuple[str, ...] | None = None) -> dict[str, object]:
     """The tracks-table columns (docs/formats.md order) of concatenated instant records.
 
     Numbers are numpy arrays (NaN where unknown), text columns pyarrow arrays (null where
@@ -205,10 +208,8 @@ def build_table(records: list[dict[str, np.ndarray]], dim: int, order: int, orig
     columns["icao24"] = icao24_text(parts["icao24"])
     columns["callsign"] = pa.nulls(count, pa.string())
     columns["iff"] = iff_text(parts["iff"])
-    source, identity_p = identity_probability(parts["identity"], parts["mode3a"], parts["icao24"], parts["iff"],
-                                              identity_error_p)
-    columns["identity_source"] = source_text(source)
-    columns["identity_p"] = identity_p
+    columns["identity_source"] = source_text(parts["identity_source"])
+    columns["identity_p"] = parts["identity_p"]
     if "model_probs" in parts and model_names is not None:
         columns["model_probs"] = model_probs_text(parts["model_probs"], model_names)
     else:

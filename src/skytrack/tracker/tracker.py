@@ -25,7 +25,7 @@ from skytrack.filters.imm_kernels import imm_predict_matched
 from skytrack.filters.maneuver import ManoeuvreState
 from skytrack.tracker.bank import CONFIRMED, TrackBank
 from skytrack.tracker.config import TrackerConfig
-from skytrack.tracker.identity import IdentityEvents, changed_rows
+from skytrack.tracker.identity import IdentityEvents, changed_rows, log_rho
 from skytrack.tracker.initiation import Initiator
 from skytrack.tracker.lifecycle import Lifecycle
 from skytrack.tracker.output import OutputClock, build_table, instant_record, reported_rows, tracks_arrow, tracks_frame
@@ -88,6 +88,7 @@ class Tracker:
         #: whether any plot fed so far carried Mode 3/A, Mode S or IFF (then identity events are kept)
         self.identity_seen = False
         self.identity_events = IdentityEvents(cfg.output.identity_error_p)
+        self._log_rho = log_rho(cfg.output.identity_error_p)
 
     # ------------------------------------------------------------------ public API
     @property
@@ -162,8 +163,7 @@ class Tracker:
         return self.identity_events.drain()
 
     def _table(self, outputs: list[dict[str, np.ndarray]]) -> dict[str, object]:
-        return build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names,
-                           self.config.output.identity_error_p)
+        return build_table(outputs, self.dim, self.order, self.sensors.origin, self.model_names)
 
     def snapshot(self, t: float, confirmed_only: bool = True) -> pd.DataFrame:
         """The live picture at time ``t``: tracks predicted to ``t`` (a live display's frame)."""
@@ -227,18 +227,19 @@ class Tracker:
         storage, columns = bank.storage, bank.column_storage
         with_psi = isinstance(storage, ManoeuvreState)
         full = self.config.output.full_covariance
-        (rows, x, var, upper, track_id, n_updates, n_misses, alt_m, z_hint, mode3a, icao24, iff,
-         identity) = report_cv(instant, len(bank), storage.x, storage.P, columns["t"], storage.psi if with_psi else
+        (rows, x, var, upper, track_id, n_updates, n_misses, alt_m, z_hint, mode3a, icao24, iff, source,
+         identity_p) = report_cv(instant, len(bank), storage.x, storage.P, columns["t"], storage.psi if with_psi else
                           self.scan._no_psi, with_psi, self.scan.fused_q,
                           float(self.filter.scale) if with_psi else 1.0, full, columns["status"], columns["track_id"],
                           columns["n_updates"], columns["n_misses"], columns["alt_m"], columns["z_hint"],
                           columns["mode3a"], columns["icao24"], columns["iff"], columns["identity"],
-                          self.config.output.report_max_misses)
+                          self._log_rho, self.config.output.report_max_misses)
         if len(rows) == 0:
             return None
         record = {"time": np.full(len(rows), instant), "track_id": track_id, "x": x, "var": var,
                   "n_updates": n_updates, "n_misses": n_misses, "alt_m": alt_m, "z_hint": z_hint,
-                  "mode3a": mode3a, "icao24": icao24, "iff": iff, "identity": identity}
+                  "mode3a": mode3a, "icao24": icao24, "iff": iff, "identity_source": source,
+                  "identity_p": identity_p}
         if full:
             record["upper"] = upper
         return record
@@ -250,13 +251,14 @@ class Tracker:
             storage = bank.storage
             x, P, probabilities = imm_predict_matched(storage.x, storage.P, storage.mu, rows, instant - bank.t[rows],
                                                       *self.scan.fused_imm)
-            return instant_record(instant, rows, x, P, bank, self.config.output.full_covariance, probabilities)
+            return instant_record(instant, rows, x, P, bank, self.config.output.full_covariance, probabilities,
+                                  self.config.output.identity_error_p)
         predicted = self.filter.predict(bank.state.take(rows), instant - bank.t[rows])
         estimate = predicted.estimate()
         # a multiple-model filter's probabilities (IMM: predicted to the instant, as the state is)
         probabilities = getattr(predicted, "mu", None) if self.model_names is not None else None
         return instant_record(instant, rows, estimate.x, estimate.P, bank, self.config.output.full_covariance,
-                              probabilities)
+                              probabilities, self.config.output.identity_error_p)
 
     @property
     def model_names(self) -> tuple[str, ...] | None:

@@ -29,6 +29,7 @@ from skytrack.tracker.identity import (
     SHOWN_ICAO24,
     SHOWN_IFF,
     SHOWN_MODE3A,
+    identity_rows,
 )
 from skytrack.tracker.kernels import _max_eig_sym, _predict_cv_row
 
@@ -317,11 +318,12 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
 
 @njit(cache=True, nogil=True)
 def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, status, track_id, n_updates,
-              n_misses, alt_m, z_hint, mode3a, icao24, iff, identity, max_misses):
+              n_misses, alt_m, z_hint, mode3a, icao24, iff, identity, log_rho, max_misses):
     """One output instant of a constant-velocity Gaussian bank: every reported track
     (:func:`skytrack.tracker.output.reported_rows`: confirmed, fewer than ``max_misses``
     consecutive misses unless that is 0) predicted to ``instant`` (the filter's process noise,
-    psi included) and its record columns (:func:`skytrack.tracker.output.instant_record`)."""
+    psi included) and its record columns (:func:`skytrack.tracker.output.instant_record`; identity
+    source and probability by :func:`skytrack.tracker.identity.identity_rows` with ``log_rho``)."""
     n = x.shape[1]
     count = 0
     for k in range(size):
@@ -351,5 +353,8 @@ def report_cv(instant, size, x, P, t, psi, with_psi, q, q_big, full_covariance, 
                 for j in range(i, n):
                     upper[c, u] = Pr[i, j]
                     u += 1
+    source = np.empty(count, np.int8)
+    identity_p = np.empty(count)
+    identity_rows(identity, mode3a, icao24, iff, rows, log_rho, source, identity_p)
     return (rows, x_out, var, upper, track_id[rows], n_updates[rows], n_misses[rows], alt_m[rows], z_hint[rows],
-            mode3a[rows], icao24[rows], iff[rows], identity[rows])
+            mode3a[rows], icao24[rows], iff[rows], source, identity_p)
