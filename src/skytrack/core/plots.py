@@ -114,7 +114,7 @@ class PlotBatch:
         ]
         if is_3d is not None and count:
             flags = np.asarray(is_3d, dtype=bool)[sensor_index]
-            problems.append(("elevation_deg", flags & ~np.isfinite(batch.elevation), "value is missing for a radar-3d plot"))
+            problems.append(("elevation_deg", flags & ~np.isfinite(batch.elevation), "value is missing for a plot of a 3-D radar"))
         for name, bad, what in problems:
             if bad.any():
                 row = int(np.flatnonzero(bad)[0])

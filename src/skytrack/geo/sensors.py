@@ -71,7 +71,9 @@ class Sensor:
 
     @property
     def is_3d(self) -> bool:
-        return self.type == "radar-3d"
+        """Measures elevation: a ``radar-3d``, or a ``radar-airborne`` with ``sigma_elevation_deg``
+        (its plots are then placed in 3-D from range, azimuth and elevation, not on the sphere model)."""
+        return self.type == "radar-3d" or (self.type == "radar-airborne" and self.sigma_elevation_deg is not None)
 
     @property
     def is_moving(self) -> bool:
