@@ -260,10 +260,15 @@ class Schedule:
             t_ref = np.where(expected, t_ref, np.clip(t_ref - np.where(late, period, 0.0), w_start, w_end))
         else:
             # no antenna schedule (e.g. an airborne radar): a plot is due once per revisit
-            # interval (the scan period, else the window) since the track's last hit or miss
+            # interval (the scan period, else the window) since the track's last hit or miss.
+            # Events are dated by their window's end, so a new track is dated by the end of the
+            # window of its first plot, not by the plot's time: with plots on window starts the
+            # next scan's plot then falls in the window where it is due, not one window later
             revisit = self.period[s] if np.isfinite(self.period[s]) else self.window_length[s]
             t_ref = np.full(count, mid)
-            expected = w_end - np.maximum(last_event, created) >= revisit
+            created_end = self.window_start(s, self.window_index(s, created) + 1)
+            since = w_end - np.maximum(last_event, created_end)
+            expected = since >= revisit * (1.0 - 1e-9)
             nearby = np.ones(count, dtype=bool)
         outside = np.zeros(count, dtype=bool)
         if sensor.max_range_m and not sensor.is_moving:
