@@ -218,6 +218,7 @@ def track(
     model_set: Annotated[Optional[str], typer.Option("--model-set", help="Model set of --filter imm or static-bank: cv-ct-noisy (default), cv-ct, noise-levels; cv-ca, full and cv-ca-singer with --model singer.")] = None,
     association_rule: Annotated[Optional[str], typer.Option("--association-rule", help="Association rule: llr (default: likelihood ratio against the clutter density), nn (coordinates only), ml, fuzzy (IFF and transponder code through spec 003's membership tables), crisp (identity mismatches forbidden).")] = None,
     association_mode: Annotated[Optional[str], typer.Option("--association-mode", help="global (default: one assignment per scan) or sequential (plot by plot, spec 003's paper).")] = None,
+    identity_error_p: Annotated[Optional[float], typer.Option("--identity-error-p", help="Per-reply error probability behind identity_p (default 0.05).")] = None,
     missing_iff: Annotated[Optional[str], typer.Option("--missing-iff", help="Fuzzy rule, plot without IFF reply: undetermined (default, the paper's table) or neutral.")] = None,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
@@ -250,6 +251,10 @@ def track(
     if model_set is not None:
         config = config.replace(model_set=model_set)
     config = _association_options(config, association_rule, association_mode, missing_iff)
+    if identity_error_p is not None:
+        if not 0.0 < identity_error_p < 0.5:
+            _fail(f"--identity-error-p must lie in (0, 0.5), got {identity_error_p}")
+        config = config.replace(identity_error_p=identity_error_p)
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:
@@ -283,6 +288,10 @@ def _print_tracking_summary(summary) -> None:
         table.add_row("plots placed over the radar", f"{stats['plots_height_above_slant_range']} (height above slant range)")
     table.add_row("tracking", f"{summary.tracking_dim}-D")
     table.add_row("track rows written", f"{summary.track_rows} -> {summary.tracks_file}")
+    if summary.identity_events_file is not None:
+        table.add_row("identity events", f"{summary.identity_event_rows} -> {summary.identity_events_file}")
+    elif summary.no_identity_events_reason:
+        table.add_row("identity events", f"none: {summary.no_identity_events_reason}")
     table.add_row("time", f"{summary.elapsed_s:.2f} s ({summary.plots_per_s:,.0f} plots/s, reading and writing included)")
     console.print(table)
     if summary.no_tracks_reason:
