@@ -40,7 +40,7 @@ import numpy as np
 
 from skytrack.core.plots import PLATFORM_COLUMNS
 from skytrack.geo.sensors import Origin, Sensor
-from skytrack.sim.radar import _clutter_secondary, _secondary, in_coverage, polar_view
+from skytrack.sim.radar import _clutter_secondary, in_coverage, measured_plots, polar_view
 from skytrack.sim.spec import RadarSimParams, TargetSpec
 from skytrack.sim.trajectories import TrajectorySet, build_trajectories
 
@@ -113,24 +113,8 @@ def airborne_plots(
     r, az, el, rdot, ground = polar_view(sensor, position, velocity, own_position, own_velocity)
     covered = in_coverage(sensor, r, el, ground, state["alt_m"], own_alt)
     detected = covered & (rng.random(time.size) < sensor.p_detection)
-    index = np.flatnonzero(detected)
-    n = index.size
-    target = target[index]
-    noise = rng.standard_normal((n, 4))
-    columns = {
-        "time": time[index],
-        "range_m": np.maximum(r[index] + sensor.sigma_range_m * noise[:, 0], 0.0),
-        "azimuth_deg": np.remainder(np.degrees(az[index]) + sensor.sigma_azimuth_deg * noise[:, 1], 360.0),
-        "scan": scans[scan_of[index]],
-        "elevation_deg": np.full(n, np.nan),
-        "range_rate_mps": np.full(n, np.nan),
-    }
-    if sensor.sigma_elevation_deg is not None:
-        columns["elevation_deg"] = np.degrees(el[index]) + sensor.sigma_elevation_deg * noise[:, 2]
-    if sensor.sigma_range_rate_mps is not None:
-        columns["range_rate_mps"] = rdot[index] + sensor.sigma_range_rate_mps * noise[:, 3]
-    columns.update(_secondary(params, traj, target, state["alt_m"][index], rng))
-    columns["truth_id"] = traj.ids[target]
+    columns = measured_plots(sensor, params, traj, rng, target, time, scans[scan_of], (r, az, el, rdot), detected,
+                             state["alt_m"])
     false = _airborne_clutter(sensor, params, times, scans, rng)
     merged = {key: np.concatenate([columns[key], false[key]]) for key in columns}
     platform_position, platform_velocity, _ = carriers.state(sensor.name, merged["time"])

@@ -185,6 +185,17 @@ def radar_plots(
     velocity = np.stack([state["vx"], state["vy"], state["vz"]], axis=1)
     r, az, el, rdot, ground = polar_view(sensor, position, velocity)
     detected = in_coverage(sensor, r, el, ground, state["alt_m"]) & (rng.random(time.size) < sensor.p_detection)
+    return measured_plots(sensor, params, traj, rng, target, time, scan_index(sensor, time), (r, az, el, rdot),
+                          detected, state["alt_m"])
+
+
+def measured_plots(sensor: Sensor, params: RadarSimParams, traj: TrajectorySet, rng: np.random.Generator,
+                   target: np.ndarray, time: np.ndarray, scan: np.ndarray, polar: tuple, detected: np.ndarray,
+                   alt_m: np.ndarray) -> dict[str, np.ndarray]:
+    """Plot columns of the ``detected`` (target, time) samples: the true ``polar`` view (range,
+    azimuth, elevation, range rate) plus the sensor's noise (elevation when it measures it,
+    range rate when it has a sigma), the secondary replies and the truth id."""
+    r, az, el, rdot = polar
     index = np.flatnonzero(detected)
     n = index.size
     target = target[index]
@@ -193,7 +204,7 @@ def radar_plots(
         "time": time[index],
         "range_m": np.maximum(r[index] + sensor.sigma_range_m * noise[:, 0], 0.0),
         "azimuth_deg": np.remainder(np.degrees(az[index]) + sensor.sigma_azimuth_deg * noise[:, 1], 360.0),
-        "scan": scan_index(sensor, time[index]),
+        "scan": scan[index],
         "elevation_deg": np.full(n, np.nan),
         "range_rate_mps": np.full(n, np.nan),
     }
@@ -201,7 +212,7 @@ def radar_plots(
         columns["elevation_deg"] = np.degrees(el[index]) + sensor.sigma_elevation_deg * noise[:, 2]
     if sensor.sigma_range_rate_mps is not None:
         columns["range_rate_mps"] = rdot[index] + sensor.sigma_range_rate_mps * noise[:, 3]
-    columns.update(_secondary(params, traj, target, state["alt_m"][index], rng))
+    columns.update(_secondary(params, traj, target, alt_m[index], rng))
     columns["truth_id"] = traj.ids[target]
     return columns
 
