@@ -45,3 +45,24 @@ def test_simulate_and_track_the_airborne_crossings(tmp_path):
     shown = last.set_index("track_id")
     for row in final.itertuples():
         assert shown.loc[row.track_id, row.field] == row.new
+
+
+def test_range_rate_positive_closing_is_negated_on_reading(tmp_path):
+    """Spec 003 R2: a file whose range rates are positive for closing targets, read with
+    --range-rate-positive-closing, tracks exactly as the dD/dt file does."""
+    runner = CliRunner()
+    assert runner.invoke(app, ["simulate", "airborne_crossing", "--out", str(tmp_path / "sim")]).exit_code == 0
+    sim = tmp_path / "sim"
+    plots = pd.read_parquet(sim / "plots.parquet")
+    assert (plots["range_rate_mps"] < 0).mean() > 0.5  # most targets close on the carrier: dD/dt < 0
+    flipped = plots.assign(range_rate_mps=-plots["range_rate_mps"])
+    flipped.to_parquet(tmp_path / "closing.parquet")
+    common = ["--sensors", str(sim / "sensors.json")]
+    assert runner.invoke(app, ["track", str(sim / "plots.parquet"), *common, "--out", str(tmp_path / "a.parquet")]).exit_code == 0
+    result = runner.invoke(app, ["track", str(tmp_path / "closing.parquet"), *common, "--out", str(tmp_path / "b.parquet"),
+                                 "--range-rate-positive-closing"])
+    assert result.exit_code == 0, result.output
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "a.parquet"), pd.read_parquet(tmp_path / "b.parquet"))
+    wrong = runner.invoke(app, ["track", str(tmp_path / "closing.parquet"), *common, "--out", str(tmp_path / "c.parquet")])
+    assert wrong.exit_code == 0
+    assert not pd.read_parquet(tmp_path / "c.parquet")[["x", "y"]].equals(pd.read_parquet(tmp_path / "a.parquet")[["x", "y"]])

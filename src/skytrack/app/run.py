@@ -85,6 +85,7 @@ def run_tracking(
     chunk_rows: int = DEFAULT_CHUNK_ROWS,
     progress: ProgressCallback | None = None,
     units_confirmed: bool = False,
+    range_rate_positive_closing: bool = False,
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
@@ -93,7 +94,9 @@ def run_tracking(
     every chunk, so memory is bounded by one chunk plus the live tracks.  With
     ``lenient=True`` malformed plot rows are skipped and counted in ``summary.report``.
     ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.  Values that
-    look like kilometres or radians stop the run unless ``units_confirmed``.
+    look like kilometres or radians stop the run unless ``units_confirmed``.  With
+    ``range_rate_positive_closing`` the file's range rates are positive for closing targets and are
+    negated on reading (skytrack's convention is ``dD/dt``).
     """
     from skytrack.io import ReadReport, identity_events_path, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.identity_events import IdentityEventWriter
@@ -120,7 +123,8 @@ def run_tracking(
     events = IdentityEventWriter(events_path)
     with TrackWriter(out) as writer:
         for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report,
-                                       units_confirmed=units_confirmed):
+                                       units_confirmed=units_confirmed,
+                                       range_rate_positive_closing=range_rate_positive_closing):
             tracker.feed(chunk, source=str(plots_path))
             first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
             writer.write(tracker.drain_arrow(), checked=True)

@@ -220,6 +220,7 @@ def track(
     association_mode: Annotated[Optional[str], typer.Option("--association-mode", help="global (default: one assignment per scan) or sequential (plot by plot, spec 003's paper).")] = None,
     identity_error_p: Annotated[Optional[float], typer.Option("--identity-error-p", help="Per-reply error probability behind identity_p (default 0.05).")] = None,
     missing_iff: Annotated[Optional[str], typer.Option("--missing-iff", help="Fuzzy rule, plot without IFF reply: undetermined (default, the paper's table) or neutral.")] = None,
+    range_rate_positive_closing: Annotated[bool, typer.Option("--range-rate-positive-closing", help="The plots' range_rate_mps is positive for closing targets; negate it into skytrack's convention (dD/dt, positive opening).")] = False,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
 ) -> None:
@@ -259,7 +260,7 @@ def track(
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
     with _progress() as progress:
         summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress,
-                               units_confirmed=units_confirmed)
+                               units_confirmed=units_confirmed, range_rate_positive_closing=range_rate_positive_closing)
     _print_tracking_summary(summary)
 
 

@@ -266,7 +266,7 @@ def iter_plots(path, sensors=None, lenient=False, *, chunk_rows=1_000_000, epoch
 
 
 def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_000_000, epoch_utc=None,
-                      report=None, units_confirmed=False):
+                      report=None, units_confirmed=False, range_rate_positive_closing=False):
     """:func:`iter_plots` as :class:`~skytrack.core.plots.PlotBatch` chunks: parsed once, in SI
     units with integer identity codes, ready for the tracker (which does not check them again).
     Row numbers count the plots kept (what the tracker's messages refer to).
@@ -277,6 +277,9 @@ def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_0
 
     A chunk whose every row is good goes from Arrow arrays to the batch directly
     (:mod:`skytrack.io.plot_arrays`); any other chunk is validated as by :func:`iter_plots`.
+
+    ``range_rate_positive_closing``: the file's ``range_rate_mps`` is positive for a closing
+    target (some radars' convention); it is negated into skytrack's ``dD/dt`` (spec 003 R2).
     """
     names = sensors.names
     is_3d = [s.is_3d for s in sensors.sensors]
@@ -287,6 +290,8 @@ def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_0
             chunk.row += first_row
         else:
             chunk = PlotBatch.from_frame(chunk, names, is_3d, str(path), first_row=first_row, check=False)
+        if range_rate_positive_closing:
+            chunk.range_rate = -chunk.range_rate
         yield chunk
         first_row += len(chunk)
 
