@@ -157,3 +157,21 @@ def test_tv13e_deleted_track_is_interrogated_again():
     plots, _ = _single_target(valid_scans=keep)
     decisions = _run(plots, policy="track")
     assert decisions.requested[0].sum() == 1 and len(np.unique(decisions.track_id[plots.valid])) == 1
+
+
+def test_r3_track_overhead_of_the_own_ship_is_left_out_and_counted():
+    """A track straight above the own-ship (rho < 1e-6 D) is no hypothesis: the next plot starts a
+    new track, and the excluded pair is counted."""
+    from skytrack.studies.fuzzy.paper_tracker import RunPlots
+
+    own_p = np.zeros((1, 3, 3))
+    own_p[..., 2] = 8000.0
+    own_v = np.zeros((1, 3, 3))
+    z = np.zeros((1, 3, 1, 4))
+    z[0, :, 0] = [2000.0, 0.0, np.pi / 2, 0.0]  # straight up, not moving
+    noise = np.diag([30.0, 0.005, 0.005, 2.0]) ** 2
+    plots = RunPlots(np.array([0.0, 2.0, 4.0]), z, np.ones((1, 3, 1), bool), own_p, own_v, noise,
+                     np.full((1, 3, 1), -1), np.full((1, 3, 1), -1))
+    decisions = _run(plots, rule="nn", policy="never")
+    assert decisions.started[0, :, 0].tolist() == [True, True, True]
+    assert decisions.degenerate_pairs == 1 + 2  # scan 1: one overhead track; scan 2: two
