@@ -172,7 +172,9 @@ def ssr_log_ratio(plot_code, plot_alt, track_code, track_alt, dt, ssr):
             d = plot_alt - track_alt
             near = ssr[LOG_KEEP] - 0.5 * (d * d / var + np.log(2.0 * np.pi * var)) + ssr[LOG_SPAN]
             far = ssr[LOG_GARBLE]  # g / H against 1 / H
-            total += ssr[TC_HAS] - ssr[CC_HAS] + max(near, far) + np.log1p(np.exp(-abs(near - far)))
+            gap = abs(near - far)
+            # ln(e^near + e^far); beyond a gap of 40 the smaller term is below 4e-18 of the larger
+            total += ssr[TC_HAS] - ssr[CC_HAS] + max(near, far) + (np.log1p(np.exp(-gap)) if gap < 40.0 else 0.0)
         else:
             total += ssr[TC_NONE] - ssr[CC_NONE]
     return total

@@ -209,19 +209,23 @@ class Schedule:
             limit = (blocking_start.min(), sensors[np.argmin(blocking_start)])
             allowed = (window_start < limit[0]) | ((window_start == limit[0]) & (window_sensor < limit[1]))
             window_sensor, window_index, window_start = window_sensor[allowed], window_index[allowed], window_start[allowed]
+        if len(window_sensor) == 0:
+            return none
         by_start = np.lexsort((window_sensor, window_start))
         if max_windows is not None:
             by_start = by_start[:max_windows]
-        keys_sensor = pending.sensor[order]
-        keys_window = plot_window[order]
+        # one sorted key per plot, (sensor, window), so every window's slice comes from two searches
+        base = min(int(plot_window.min()) if len(plot_window) else 0, int(window_index.min()))
+        span = max(int(plot_window.max()) if len(plot_window) else 0, int(window_index.max())) - base + 1
+        plot_keys = pending.sensor[order].astype(np.int64) * span + (plot_window[order] - base)
+        chosen_sensor, chosen_index = window_sensor[by_start], window_index[by_start]
+        window_keys = chosen_sensor.astype(np.int64) * span + (chosen_index - base)
+        starts = np.searchsorted(plot_keys, window_keys, side="left").tolist()
+        ends = np.searchsorted(plot_keys, window_keys, side="right").tolist()
         taken = np.zeros(len(pending), dtype=bool)
         windows = []
-        for s, k, start in zip(window_sensor[by_start].tolist(), window_index[by_start].tolist(),
-                               window_start[by_start].tolist()):
-            lo = np.searchsorted(keys_sensor, s, side="left")
-            hi = np.searchsorted(keys_sensor, s, side="right")
-            a = lo + int(np.searchsorted(keys_window[lo:hi], k, side="left"))
-            b = lo + int(np.searchsorted(keys_window[lo:hi], k, side="right"))
+        for s, k, start, a, b in zip(chosen_sensor.tolist(), chosen_index.tolist(), window_start[by_start].tolist(),
+                                     starts, ends):
             taken[a:b] = True
             self.next_window[s] = k + 1
             windows.append((s, k, start, start + self.window_length[s], slice(a, b)))
