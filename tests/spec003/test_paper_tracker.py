@@ -175,3 +175,20 @@ def test_r3_track_overhead_of_the_own_ship_is_left_out_and_counted():
     decisions = _run(plots, rule="nn", policy="never")
     assert decisions.started[0, :, 0].tolist() == [True, True, True]
     assert decisions.degenerate_pairs == 1 + 2  # scan 1: one overhead track; scan 2: two
+
+
+def test_r13_diagnostic_rows_of_the_studies_tracker(errors_always):
+    """One row per (plot, hypothesis) with the new object as track -1; exactly one chosen per plot,
+    the one the decision took; ln mu = -d2/2 + ln(mu_G mu_N) (D3)."""
+    tracker = PaperTracker(PaperTrackerConfig(rule=RuleConfig(rule="fuzzy", mode="global"), iff_policy="always"),
+                           diagnostics=True)
+    decisions = tracker.run(errors_always.plots)
+    rows = decisions.diagnostics
+    chosen = rows[rows.chosen].set_index(["run", "scan", "plot_slot"]).sort_index()
+    assert chosen.index.is_unique and len(chosen) == int(errors_always.plots.valid.sum())
+    run, scan, slot = (chosen.index.get_level_values(i).to_numpy() for i in range(3))
+    took = decisions.track_id[run, scan, slot]
+    started = decisions.started[run, scan, slot]
+    np.testing.assert_array_equal(np.where(started, -1, took), chosen["track_id"].to_numpy())
+    tracks = rows[rows.track_id >= 0]
+    np.testing.assert_allclose(tracks.ln_mu, -0.5 * tracks.d2 + np.log(tracks.mu_G * tracks.mu_N), rtol=1e-12)

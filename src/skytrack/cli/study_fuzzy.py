@@ -171,6 +171,9 @@ def fuzzy_crossing(
     missing_iff: Annotated[str | None, typer.Option(help="undetermined and/or neutral (comma-separated).")] = None,
     check: Annotated[bool, typer.Option("--check", help="Run the spec's CI-sized configurations and exit 1 unless "
                                         "assertions (i)-(iv) and Q1-Q5 hold.")] = False,
+    diagnostic_runs: Annotated[int, typer.Option("--diagnostic-runs", help="Write spec 003 R13's per-(plot, "
+                                                 "hypothesis) scores of the first N runs of every configuration "
+                                                 "and method to fuzzy_crossing_pairs.parquet.")] = 0,
 ) -> None:
     """E4: crossing targets of different nationality, IFF errors and interrogation policies (spec 003 §6)."""
     import itertools
@@ -210,8 +213,11 @@ def fuzzy_crossing(
             cases = crossing.sweep_cases([s.strip() for s in sweeps.split(",") if s.strip()])
         except ValueError as error:
             _fail(str(error))
+    if diagnostic_runs < 0:
+        _fail(f"--diagnostic-runs must be >= 0, got {diagnostic_runs}")
     out.mkdir(parents=True, exist_ok=True)
     kept: list = []
+    pairs: list = []
     tables = []
     columns = (TextColumn("[bold]fuzzy-crossing"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=error_console, transient=False) as display:
@@ -219,7 +225,8 @@ def fuzzy_crossing(
         for case in cases:
             decisions: dict = {}
             tables.append(crossing.run_case(case, method_list, runs, seed, lambda n: display.advance(task, n),
-                                            keep=decisions if check else None))
+                                            keep=decisions if check else None,
+                                            diagnostic_runs=min(diagnostic_runs, runs), diagnostics=pairs))
             kept.append((case, decisions))
         if check:  # TV13 (c) also across p_reply: the coordinate rules on a run set with p_reply = 0.5
             decisions = {}
@@ -230,6 +237,10 @@ def fuzzy_crossing(
     csv_path, png_path = out / "fuzzy_crossing.csv", out / "fuzzy_crossing.png"
     table.to_csv(csv_path, index=False)
     crossing_figure(table, png_path)
+    if pairs:
+        pairs_path = out / "fuzzy_crossing_pairs.parquet"
+        pd.concat(pairs, ignore_index=True).to_parquet(pairs_path, index=False)
+        console.print(f"per-(plot, hypothesis) scores (R13) of the first {diagnostic_runs} runs: {pairs_path}")
     summary = Table(title=f"fuzzy-crossing: CAR / swap / broken ({runs} runs per configuration, seed {seed})")
     for column in ("sweep", "policy", "errors flip/code", "β", "q", "missing IFF", *method_list):
         summary.add_column(column, justify="right")

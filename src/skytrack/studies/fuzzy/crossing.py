@@ -30,7 +30,7 @@ from skytrack.analysis.association_metrics import association_metrics
 from skytrack.association.features import FeatureTables
 from skytrack.association.identity_rules import RuleConfig
 from skytrack.sim.airborne import crossing_scenario
-from skytrack.studies.fuzzy.paper_tracker import PaperTracker, PaperTrackerConfig, RunDecisions
+from skytrack.studies.fuzzy.paper_tracker import PaperTracker, PaperTrackerConfig, RunDecisions, RunPlots
 from skytrack.studies.fuzzy.runs import IffSettings, SimulatedRuns, simulate_runs
 
 #: method name -> (rule, mode)
@@ -99,11 +99,15 @@ def decisions_metrics(decisions: RunDecisions, runs: SimulatedRuns):
 
 
 def run_case(case: CrossingCase, methods: Iterable[str], runs: int, seed: int,
-             progress: Callable[[int], None] | None = None, keep: dict | None = None) -> pd.DataFrame:
+             progress: Callable[[int], None] | None = None, keep: dict | None = None,
+             diagnostic_runs: int = 0, diagnostics: list | None = None) -> pd.DataFrame:
     """One row per method: the case's settings, ``runs`` and the R19 rates with their SEs.
 
-    ``keep`` (a dict) receives each method's :class:`RunDecisions` (the TV13 (c) check)."""
+    ``keep`` (a dict) receives each method's :class:`RunDecisions` (the TV13 (c) check);
+    with ``diagnostic_runs`` > 0 the first that many runs are tracked again with R13's
+    per-(plot, hypothesis) rows, appended to ``diagnostics`` with the case and the method."""
     simulated = case.simulate(runs, seed)
+    first = first_runs(simulated.plots, diagnostic_runs) if diagnostic_runs > 0 else None
     rows = []
     for method in methods:
         if method not in METHODS:
@@ -111,6 +115,12 @@ def run_case(case: CrossingCase, methods: Iterable[str], runs: int, seed: int,
         decisions = case.tracker(method).run(simulated.plots)
         if keep is not None:
             keep[method] = decisions
+        if first is not None and diagnostics is not None:
+            tracker = case.tracker(method)
+            tracker.diagnostics = True
+            table = tracker.run(first).diagnostics
+            if table is not None:
+                diagnostics.append(table.assign(method=method, **asdict(case)))
         s = decisions_metrics(decisions, simulated).summary
         rows.append({**asdict(case), "method": method, "runs": runs, "car": s["car"], "car_se": s["car_se"],
                      "car_se_runs": s["car_se_runs"],
@@ -120,6 +130,12 @@ def run_case(case: CrossingCase, methods: Iterable[str], runs: int, seed: int,
         if progress is not None:
             progress(1)
     return pd.DataFrame(rows)
+
+
+def first_runs(plots: RunPlots, count: int) -> RunPlots:
+    """The first ``count`` runs of a batch."""
+    per_run = ("z", "valid", "own_p", "own_v", "reply_iff", "reply_code")
+    return replace(plots, **{name: getattr(plots, name)[:count] for name in per_run})
 
 
 def run_study(cases: list[CrossingCase], methods: Iterable[str], runs: int, seed: int,

@@ -26,7 +26,9 @@ Per scan (all plots of a scan share its time, R17):
 
 Pairs with the object overhead of the own-ship (R3: ``rho < 1e-6 D``) are left out of the
 association and counted (``degenerate_pairs``).  Ties (R12): a track beats ``new`` and the
-lower track id wins.
+lower track id wins.  With ``diagnostics=True`` every scoring is kept as R13's rows: per
+(plot, hypothesis) the track id (-1 for the new object), ``d2``, ``logdet``, ``ln_p``,
+``ln_mu_coord``, ``mu_G``, ``mu_N``, ``ln_mu`` and whether it was chosen.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
 from skytrack.association.features import UNDETERMINED
 from skytrack.association.identity_rules import (NEW, RuleConfig, decide_global, feature_logs, gate_gamma,
@@ -98,6 +101,8 @@ class RunDecisions:
     track_iff: np.ndarray
     track_code: np.ndarray
     degenerate_pairs: int = 0
+    #: R13 rows (with ``diagnostics=True``): one per (plot, hypothesis), the new object as track -1
+    diagnostics: pd.DataFrame | None = None
 
 
 class _Bank:
@@ -143,10 +148,12 @@ class _Bank:
 
 
 class PaperTracker:
-    """Runs :class:`PaperTrackerConfig` over a batch of runs (see the module docstring)."""
+    """Runs :class:`PaperTrackerConfig` over a batch of runs (see the module docstring);
+    ``diagnostics=True`` also returns R13's per-(plot, hypothesis) rows."""
 
-    def __init__(self, config: PaperTrackerConfig) -> None:
+    def __init__(self, config: PaperTrackerConfig, diagnostics: bool = False) -> None:
         self.config = config
+        self.diagnostics = diagnostics
 
     def run(self, plots: RunPlots) -> RunDecisions:
         config = self.config
@@ -161,6 +168,7 @@ class PaperTracker:
         self._new_score = float(new_object_score(config.rule, n_c))
         self._noise = np.asarray(plots.noise, dtype=float)
         self._h = np.zeros((0, 0, n_c))
+        self._rows: list[pd.DataFrame] = []
         for k in range(scans):
             if k:
                 dt = plots.time[k] - plots.time[k - 1]
@@ -187,6 +195,8 @@ class PaperTracker:
                     score, hypothesis = self._scores(bank, terms, iff[:, j:j + 1], code[:, j:j + 1],
                                                      valid[:, j:j + 1], out)
                     choice = self._best(bank, score[:, 0], hypothesis[:, 0])
+                    if self.diagnostics:
+                        self._record(bank, k, np.array([j]), choice[:, None], valid[:, j:j + 1])
                     runs_j = np.flatnonzero(valid[:, j])
                     changed = self._apply(bank, k, runs_j, np.full(len(runs_j), j), choice[runs_j], z, own_p, own_v,
                                           iff, code, out)
@@ -194,12 +204,31 @@ class PaperTracker:
             else:
                 score, hypothesis = self._scores(bank, terms, iff, code, valid, out)
                 choices = self._global(bank, score, hypothesis)
+                if self.diagnostics:
+                    self._record(bank, k, np.arange(slots), choices, valid)
                 runs_k, plots_k = np.nonzero(valid)  # sorted by run, as _apply needs
                 self._apply(bank, k, runs_k, plots_k, choices[runs_k, plots_k], z, own_p, own_v, iff, code, out)
             missed = bank.alive & ~bank.hit & ~bank.born
             bank.misses[missed] += 1
             bank.alive &= bank.misses < config.max_misses
+        if self.diagnostics:
+            out.diagnostics = pd.concat(self._rows, ignore_index=True) if self._rows else None
         return out
+
+    def _record(self, bank: _Bank, k: int, slots: np.ndarray, choice: np.ndarray, valid: np.ndarray) -> None:
+        """R13: the last scoring's rows for the live tracks and the new object, with the choice."""
+        columns, usable = self._last_columns, self._last_usable
+        run, plot, slot = np.nonzero(usable & valid[:, :, None])
+        rows = {"run": run, "scan": np.full(len(run), k), "plot_slot": slots[plot], "track_id": bank.track_id[run, slot],
+                **{name: values[run, plot, slot] for name, values in columns.items()},
+                "chosen": choice[run, plot] == slot}
+        new_run, new_plot = np.nonzero(valid)
+        nan = np.full(len(new_run), np.nan)
+        new = {"run": new_run, "scan": np.full(len(new_run), k), "plot_slot": slots[new_plot],
+               "track_id": np.full(len(new_run), -1), **{name: nan for name in columns},
+               "chosen": choice[new_run, new_plot] == NEW}
+        new["ln_mu"] = np.full(len(new_run), self._new_score)
+        self._rows += [pd.DataFrame(rows), pd.DataFrame(new)]
 
     # ------------------------------------------------------------------ scoring
 
@@ -241,6 +270,9 @@ class PaperTracker:
         ln_g, ln_n = feature_logs(self.config.rule, bank.iff[:, None, :], iff[:, :, None], bank.code[:, None, :],
                                   code[:, :, None])
         scores = score_pairs(self.config.rule, d2, logdet, self._noise.shape[0], ln_g, ln_n)
+        if self.diagnostics:
+            self._last_columns = {name: np.broadcast_to(values, d2.shape) for name, values in scores.columns.items()}
+            self._last_usable = usable & bank.alive[:, None, :]
         return scores.score, scores.hypothesis & usable & valid[:, :, None]
 
     def _interrogate(self, bank: _Bank, terms, valid: np.ndarray) -> np.ndarray:
