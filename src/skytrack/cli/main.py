@@ -25,6 +25,7 @@ from rich.table import Table
 
 from skytrack import __version__
 from skytrack.cli import defaults
+from skytrack.cli.identify import identify_app
 from skytrack.cli.study import study_app
 
 app = typer.Typer(
@@ -35,6 +36,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(study_app, name="study")
+app.add_typer(identify_app, name="identify")
 
 console = Console()
 error_console = Console(stderr=True)
