@@ -71,6 +71,11 @@ class IdentifierConfig:
     recreate_after_s: float = 60.0
     batch_s: float = 1.0
     """reports are processed in batches of this length; pairs are made at each batch's end"""
+    horizon_s: float | None = None
+    """re-initialise every pair by ``fuse`` when its sequential evidence is this old (None: never).
+    With process noise in the model and smoother true motion, Λ of true pairs drifts upwards with
+    the number of reports (its variance grows even when the model holds, TV-5c); a horizon
+    bounds that drift at the price of the evidence older than the horizon (skytrack addition)"""
     compiled: bool = True
 
     def __post_init__(self):
@@ -80,6 +85,8 @@ class IdentifierConfig:
             raise ValueError(f"cost must be one of {COSTS}, got {self.cost!r}")
         if self.cost == "bayes" and not (self.object_density and self.object_density > 0):
             raise ValueError("cost='bayes' needs object_density (objects per unit of state space, > 0)")
+        if self.horizon_s is not None and not self.horizon_s > 0:
+            raise ValueError(f"horizon_s must be > 0 or None, got {self.horizon_s}")
         for name in ("gate_m", "batch_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -261,7 +268,10 @@ class TrackIdentifier:
 
     # ------------------------------------------------------------------ pairs
     def _make_pairs(self, t: float) -> None:
-        """R13 step 2: pairs of full-rank tracks of the two systems within the gate at time ``t``."""
+        """R13 step 2: pairs of full-rank tracks of the two systems within the gate at time ``t``
+        (and, with a horizon, the re-initialisation of pairs whose evidence reached it)."""
+        if self.config.horizon_s is not None:
+            self._refresh_pairs(t)
         ready = self.track_alive & self.tracks.full
         first = np.flatnonzero(ready & (self.track_side == 1))
         second = np.flatnonzero(ready & (self.track_side == 2))
@@ -288,6 +298,19 @@ class TrackIdentifier:
             x, P, t_joint, statistic, dof = replay_pairs(self.model, self.history, i, j)
             self.pairs.add(i, j, t_joint, x, P, statistic, dof)
         self.stats["pairs_created"] += len(i)
+
+    def _refresh_pairs(self, t: float) -> None:
+        pairs = self.pairs
+        old = np.flatnonzero(pairs.alive[:pairs.size] & (t - pairs.created_at[:pairs.size] >= self.config.horizon_s))
+        if len(old) == 0:
+            return
+        x_i, P_i = self.tracks.estimate_at(pairs.first[old], t)
+        x_j, P_j = self.tracks.estimate_at(pairs.second[old], t)
+        x, _, P = fuse_information(x_i, P_i, x_j, P_j)
+        pairs.joint.x[old], pairs.joint.P[old], pairs.joint.t[old] = x, P, t
+        pairs.statistic[old] = track_states_test(x_i, P_i, x_j, P_j)
+        pairs.created_at[old] = t
+        self.stats["pairs_refreshed"] = self.stats.get("pairs_refreshed", 0) + len(old)
 
     def _predicted_positions(self, rows: np.ndarray, t: float) -> np.ndarray:
         nd = self.model.ndim

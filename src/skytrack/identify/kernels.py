@@ -40,44 +40,99 @@ def cv_transition(ndim, dt, q, F, Q):
 
 
 @njit(cache=True)
-def _predict_covariance(x, P, F, Q):
-    n = x.shape[0]
-    x[:] = F @ x
-    P_new = F @ P @ F.T + Q
+def _predict_cv(x, P, ndim, dt, q, work):
+    """CV prediction in place without allocation: F = I + dt E, E moving velocity into position."""
+    n = 2 * ndim
+    for a in range(ndim):
+        x[a] += dt * x[ndim + a]
     for i in range(n):
         for j in range(n):
-            P[i, j] = 0.5 * (P_new[i, j] + P_new[j, i])
+            work[i, j] = P[i, j]
+    for a in range(ndim):  # F P: position rows take dt times their velocity rows
+        for j in range(n):
+            work[a, j] += dt * P[ndim + a, j]
+    for i in range(n):  # (F P) F^T: position columns take dt times their velocity columns
+        for a in range(ndim):
+            work[i, a] += dt * work[i, ndim + a]
+    q3, q2, q1 = q * dt ** 3 / 3.0, q * dt ** 2 / 2.0, q * dt
+    for a in range(ndim):
+        work[a, a] += q3
+        work[a, ndim + a] += q2
+        work[ndim + a, a] += q2
+        work[ndim + a, ndim + a] += q1
+    for i in range(n):
+        for j in range(i, n):
+            value = 0.5 * (work[i, j] + work[j, i])
+            P[i, j] = value
+            P[j, i] = value
 
 
 @njit(cache=True)
-def _update_covariance(x, P, z, V, m):
-    """Joseph update with H = [I_m 0]; returns (ν^T S^{-1} ν, ln det S)."""
+def _update_covariance(x, P, z, V, m, work):
+    """Joseph update with H = [I_m 0] without allocation; returns (ν^T S^{-1} ν, ln det S).
+
+    ``work`` is ``[5, max(n, 3), n]`` scratch: Cholesky factor of S, S^{-1}, the gain, (I − K H) P, vectors.
+    """
     n = x.shape[0]
-    S = np.empty((m, m))
-    nu = np.empty(m)
+    chol, s_inv, gain, product = work[0], work[1], work[2], work[3]
+    solve, nu, correction = work[4, 0], work[4, 1], work[4, 2]
+    for i in range(m):  # Cholesky factor of S = P_mm + V
+        for j in range(i + 1):
+            total = P[i, j] + V[i, j]
+            for k in range(j):
+                total -= chol[i, k] * chol[j, k]
+            if i == j:
+                chol[i, i] = np.sqrt(total)
+            else:
+                chol[i, j] = total / chol[j, j]
+    for col in range(m):  # S^{-1} column by column: forward then back substitution
+        for i in range(m):
+            total = 1.0 if i == col else 0.0
+            for k in range(i):
+                total -= chol[i, k] * solve[k]
+            solve[i] = total / chol[i, i]
+        for i in range(m - 1, -1, -1):
+            total = solve[i]
+            for k in range(i + 1, m):
+                total -= chol[k, i] * s_inv[k, col]
+            s_inv[i, col] = total / chol[i, i]
     for i in range(m):
         nu[i] = z[i] - x[i]
-        for j in range(m):
-            S[i, j] = P[i, j] + V[i, j]
-    chol = np.linalg.cholesky(S)
-    S_inv = np.linalg.inv(S)
-    gain = np.ascontiguousarray(P[:, :m]) @ S_inv
     quadratic = 0.0
-    for i in range(m):
-        for j in range(m):
-            quadratic += nu[i] * S_inv[i, j] * nu[j]
     logdet = 0.0
     for i in range(m):
         logdet += 2.0 * np.log(chol[i, i])
-    x += gain @ nu
-    I_KH = np.eye(n)
-    for i in range(n):
         for j in range(m):
-            I_KH[i, j] -= gain[i, j]
-    P_new = I_KH @ P @ I_KH.T + gain @ np.ascontiguousarray(V[:m, :m]) @ gain.T
+            quadratic += nu[i] * s_inv[i, j] * nu[j]
+    for i in range(n):  # K = P H^T S^{-1}, and K ν
+        step = 0.0
+        for j in range(m):
+            total = 0.0
+            for k in range(m):
+                total += P[i, k] * s_inv[k, j]
+            gain[i, j] = total
+            step += total * nu[j]
+        correction[i] = step
     for i in range(n):
+        x[i] += correction[i]
+    for i in range(n):  # (I − K H) P
         for j in range(n):
-            P[i, j] = 0.5 * (P_new[i, j] + P_new[j, i])
+            total = P[i, j]
+            for k in range(m):
+                total -= gain[i, k] * P[k, j]
+            product[i, j] = total
+    for i in range(n):  # (I − K H) P (I − K H)^T + K V K^T, symmetric: upper triangle then mirror
+        for j in range(i, n):
+            total = product[i, j]
+            for k in range(m):
+                total -= product[i, k] * gain[j, k]
+            for k in range(m):
+                for l in range(m):
+                    total += gain[i, k] * V[k, l] * gain[j, l]
+            P[i, j] = total
+    for i in range(n):
+        for j in range(i):
+            P[i, j] = P[j, i]
     return quadratic, logdet
 
 
@@ -126,21 +181,21 @@ def _information_minimum(Y, y, c0):
 
 @njit(cache=True)
 def _update_track(k, t, z, V, m, ndim, q, tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x, tr_P, tr_J, tr_L, tr_m, tr_rank,
-                  F, Q):
+                  F, Q, work):
     """Predict and update track k; returns the increment of its J."""
     n = 2 * ndim
     if np.isfinite(tr_t[k]):
         dt = t - tr_t[k]
         if dt > 0.0:
-            cv_transition(ndim, dt, q, F, Q)
             if tr_full[k]:
-                _predict_covariance(tr_x[k], tr_P[k], F, Q)
+                _predict_cv(tr_x[k], tr_P[k], ndim, dt, q, work[0])
             else:
+                cv_transition(ndim, dt, q, F, Q)
                 _predict_information(tr_Y[k], tr_y[k], tr_c0[k:k + 1], F, Q, q)
     tr_t[k] = t
     tr_m[k] += m
     if tr_full[k]:
-        quadratic, logdet = _update_covariance(tr_x[k], tr_P[k], z, V, m)
+        quadratic, logdet = _update_covariance(tr_x[k], tr_P[k], z, V, m, work)
         tr_J[k] += quadratic
         tr_L[k] += logdet
         return quadratic
@@ -182,6 +237,7 @@ def process_reports(report_track, report_time, report_z, report_m, report_V, ndi
     n = 2 * ndim
     F = np.empty((n, n))
     Q = np.empty((n, n))
+    work = np.zeros((5, max(n, 3), n))
     pair_updates = 0
     for r in range(len(report_track)):
         k = report_track[r]
@@ -190,17 +246,16 @@ def process_reports(report_track, report_time, report_z, report_m, report_V, ndi
         z = report_z[r]
         V = report_V[r]
         own = _update_track(k, t, z, V, m, ndim, q, tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x, tr_P, tr_J, tr_L, tr_m,
-                            tr_rank, F, Q)
+                            tr_rank, F, Q, work)
         for a in range(adj_ptr[k], adj_ptr[k + 1]):
             p = adj_pair[a]
             if not pr_alive[p]:
                 continue
             dt = t - pr_t[p]
             if dt > 0.0:
-                cv_transition(ndim, dt, q, F, Q)
-                _predict_covariance(pr_x[p], pr_P[p], F, Q)
+                _predict_cv(pr_x[p], pr_P[p], ndim, dt, q, work[0])
                 pr_t[p] = t
-            joint, _ = _update_covariance(pr_x[p], pr_P[p], z, V, m)
+            joint, _ = _update_covariance(pr_x[p], pr_P[p], z, V, m, work)
             pr_lam[p] += joint - own
             pr_updates[p] += 1
             pair_updates += 1
