@@ -1,5 +1,6 @@
 """Parsers of the scenario sections: sensors (with their IFF interrogator and an airborne
-radar's carrier), targets with their legs, and random traffic.
+radar's carrier), targets with their legs (and their ADS-B settings, read by
+:func:`skytrack.sim.adsb.parse_adsb_aircraft`), and random traffic.
 
 Each parser reads one section of a scenario document through :class:`~skytrack.sim._validate.Fields`
 (errors name the document and the key path) into the dataclasses of :mod:`skytrack.sim.spec`;
@@ -19,6 +20,7 @@ import numpy as np
 from skytrack.geo.sensors import Origin, Sensor, SensorSet
 from skytrack.geo.wgs84 import enu_to_geodetic, geodetic_to_enu
 from skytrack.sim._validate import Fields, ScenarioError, describe, join_path
+from skytrack.sim.adsb import ADSB_AIRCRAFT_KEYS, parse_adsb_aircraft
 from skytrack.sim.earth import place_at_height, sensor_relative_positions
 from skytrack.sim.spec import (
     LEG_TYPES,
@@ -44,6 +46,7 @@ from skytrack.sim.spec import (
 
 _MODE3A = re.compile(r"[0-7]{4}")
 _ICAO24 = re.compile(r"[0-9a-f]{6}")
+_CALLSIGN = re.compile(r"[A-Z0-9]{1,8}")
 
 _POSITION_KEYS = ("name", "type", "lat", "lon", "alt_m", "x", "y", "z")
 _SENSOR_VALUE_KEYS = (
@@ -61,6 +64,7 @@ _PATCH_KEYS = ("range_m", "azimuth_deg", "per_scan")
 _TARGET_KEYS = (
     "id", "start_time_s", "x", "y", "lat", "lon", "range_m", "azimuth_deg", "sensor", "alt_m",
     "speed_mps", "heading_deg", "transponder", "mode3a", "icao24", "iff", "iff_p_reply", "legs",
+    "callsign", "adsb",
 )
 _LEG_KEYS = {
     "straight": ("type", "duration_s"),
@@ -345,6 +349,10 @@ def _parse_target(f: Fields, ctx: _Context) -> TargetSpec:
     if iff_p_reply is not None and iff is None:
         raise f.error("iff_p_reply", "needs iff (the target's true status, friend or foe)")
     legs = _parse_legs(f, ctx, alt)
+    callsign = f.string("callsign", None)
+    if callsign is not None and not _CALLSIGN.fullmatch(callsign.strip().upper()):
+        raise f.error("callsign", f"must be 1-8 letters or digits such as 'AFR123', got {callsign!r}")
+    adsb = f.sub("adsb", ADSB_AIRCRAFT_KEYS, None)
     return TargetSpec(
         id=str(raw_id),
         x=x,
@@ -359,6 +367,8 @@ def _parse_target(f: Fields, ctx: _Context) -> TargetSpec:
         icao24=icao24,
         iff=iff,
         iff_p_reply=iff_p_reply,
+        callsign=None if callsign is None else callsign.strip().upper(),
+        adsb=None if adsb is None else parse_adsb_aircraft(adsb),
     )
 
 

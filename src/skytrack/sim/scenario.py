@@ -36,6 +36,7 @@ Top level
 ``targets``            list of scripted targets (optional)
 ``traffic``            random traffic generator (optional)
 ``recorded``           recorded aircraft trajectories used as truth (optional, below)
+``adsb``               simulated ADS-B reports of the aircraft (optional, below)
 
 Sensors (``sensors[i]``) -- the key names of ``sensors.json`` (FORMATS.md)
 ----------------------------------------------------------------------
@@ -145,6 +146,9 @@ position, one of:  ``x``, ``y`` (common ENU, m) | ``lat``, ``lon`` |
 ``iff``            true IFF status, ``friend`` or ``foe``; absent = no IFF transponder (never
                    replies to an interrogator).  The replied code is the target's ``mode3a``
 ``iff_p_reply``    this target's reply probability (replaces the radar's ``p_reply``); needs ``iff``
+``callsign``       flight identification sent by ADS-B, 1-8 letters or digits (upper-cased);
+                   default: derived from the id (below)
+``adsb``           this target's ADS-B settings (needs the ``adsb`` section; keys below)
 ``legs``           list of manoeuvres flown one after the other; after the last leg the
                    target flies straight and level until ``duration_s`` or until it has
                    left the coverage of every sensor for good (outside every max range
@@ -240,6 +244,53 @@ states of :func:`skytrack.io.read_state_vectors` to ``simulate(..., recorded=...
                   ``max_vertical_rate_mps`` (100), ``altitude_tolerance_m`` (100),
                   ``max_outlier_s`` (300), ``max_short_run_rows`` (3), ``min_interval_s`` (0),
                   ``min_segment_rows`` (2), ``keep_onground`` (false)
+
+ADS-B (``adsb``) -- simulated ADS-B reports (issue 9; model in :mod:`skytrack.sim.adsb`)
+---------------------------------------------------------------------------------------
+Reports of every equipped aircraft (scripted, random and recorded), made from its truth,
+written by ``skytrack simulate`` as ``adsb.<fmt>`` with the true target id as ``truth_id``.
+``adsb: true`` is the section with its defaults; ``adsb: false`` (or ``enabled: false``) is
+none.  With recorded traffic the section replaces the recorded samples as reports (its
+aircraft are then equipped, lost, noisy and faulty like the others; ``recorded.adsb: false``
+leaves them unequipped; ``recorded.adsb_sigma_m`` is refused).  Turning ADS-B on or
+changing it leaves the radar plots of a seed bit-identical.
+``enabled``            true (default) / false
+``interval_s``         time between an aircraft's reports, > 0 (default 1); each aircraft has a
+                       random phase in [0, interval_s)
+``jitter_s``           each report time moves uniformly within +-jitter_s, < interval_s / 2
+                       (default 0.05)
+``sigma_m``            horizontal position noise, per ENU axis, > 0 (default 10 m); written as
+                       the reports' ``sigma_m``
+``sigma_alt_m``        height noise >= 0 (default 15 m)
+``velocities``         true (default): the reports carry the velocity, with noise
+                       ``sigma_velocity_mps`` >= 0 per axis (default 1 m/s); false: none
+``p_drop``             probability that a report is lost, independently, in [0, 1] (default 0)
+``outages``            list of ``[start, end]`` windows (s, closed) without any report
+``equipage``           fraction of the aircraft that transmit, in [0, 1] (default 1): exactly
+                       round(equipage x n) of the n aircraft with a transponder and no
+                       ``equipped`` setting, drawn from the scenario seed
+``coverage_m``         ground-station range: no report from an aircraft farther than this
+                       (horizontal distance from the frame's origin; default unlimited)
+``equipped``           list of target ids that transmit (whatever the equipage)
+``unequipped``         list of target ids that do not
+``aircraft``           mapping target id -> settings (the keys below), for random and recorded
+                       aircraft; a Mode S address as the key sets every target with it (all
+                       segments of a recorded aircraft; quote keys that YAML would read as
+                       numbers, "001234").  An id may be set once (in the lists, here or in
+                       the target's own ``adsb``)
+Per-aircraft settings (``targets[i].adsb`` or ``adsb.aircraft.<id>``):
+``equipped``           true / false: transmits or not, whatever the equipage; an aircraft
+                       without a transponder transmits only when this is true
+``offset_m``           ``[east, north]`` constant error of every reported position (m): a faulty
+                       transponder or navigation source; the reports' sigma_m is unchanged
+``wrong_icao24``       the address transmitted instead of the true one (6 hex digits), or true
+                       for a derived address of no other aircraft
+``wrong_callsign``     the callsign transmitted instead (1-8 letters/digits), or true (derived)
+``no_callsign``        true: the reports carry no callsign
+Identity: the true address is the target's Mode S address (``icao24``; a recorded segment's
+icao24), else one derived from its id (SHA-256, distinct from every other address); the
+callsign is the target's ``callsign`` (a recorded segment's most frequent one), else the id
+in capitals when it is 1-8 letters and digits, else ``SKY`` and five digits.
 """
 
 from __future__ import annotations
@@ -254,11 +305,14 @@ import numpy as np
 
 from skytrack.geo.sensors import Origin, SensorSet
 from skytrack.sim._validate import Fields, ScenarioError, load_yaml
+from skytrack.sim.adsb import check_target_settings, parse_adsb
 from skytrack.sim.earth import sensor_relative_positions
 from skytrack.sim.parse import _TARGET_KEYS, _TRAFFIC_KEYS, _Context, _parse_sensors, _parse_target, _parse_traffic
 from skytrack.sim.recorded import RECORDED_KEYS, RecordedSpec, parse_recorded
 from skytrack.sim.spec import (
     GRAVITY_MPS2,
+    AdsbAircraftSpec,
+    AdsbSpec,
     LEG_TYPES,
     RESERVED_MODE3A,
     SCENARIO_TYPES,
@@ -298,6 +352,7 @@ class Scenario:
     epoch_utc: str | None = None
     description: str = ""
     recorded: RecordedSpec | None = None
+    adsb: AdsbSpec | None = None
 
     def all_targets(self) -> list[TargetSpec]:
         """Scripted targets followed by the traffic drawn from the seed (ids checked unique)."""
@@ -329,7 +384,7 @@ def scale_traffic(scenario: Scenario, count: int) -> Scenario:
 
 _TOP_KEYS = (
     "name", "description", "origin", "epoch_utc", "duration_s", "seed", "truth_sample_s",
-    "sensor_defaults", "sensors", "targets", "traffic", "recorded",
+    "sensor_defaults", "sensors", "targets", "traffic", "recorded", "adsb",
 )
 
 #: directory of the example scenarios shipped with the package
@@ -403,6 +458,9 @@ def _parse(data: Any, source: str, default_name: str, base_dir: Path | None = No
     targets = tuple(_parse_target(Fields(item, path, source, _TARGET_KEYS), context) for path, item in top.items("targets", None))
     traffic_fields = top.sub("traffic", _TRAFFIC_KEYS, None)
     traffic = None if traffic_fields is None else _parse_traffic(traffic_fields, context)
+    recorded = _parse_recorded_section(top, base_dir, epoch)
+    adsb = parse_adsb(top)
+    _check_adsb(top, adsb, targets, recorded)
     return Scenario(
         name=top.string("name", default_name),
         source=source,
@@ -416,8 +474,20 @@ def _parse(data: Any, source: str, default_name: str, base_dir: Path | None = No
         traffic=traffic,
         epoch_utc=epoch,
         description=top.string("description", ""),
-        recorded=_parse_recorded_section(top, base_dir, epoch),
+        recorded=recorded,
+        adsb=adsb,
     )
+
+
+def _check_adsb(top: Fields, adsb: AdsbSpec | None, targets: tuple[TargetSpec, ...], recorded: RecordedSpec | None) -> None:
+    """Targets' own ADS-B settings need the section; the section simulates recorded aircraft's reports too."""
+    own = {target.id: f"targets[{i}].adsb" for i, target in enumerate(targets) if target.adsb is not None}
+    check_target_settings(adsb, own, top.source)
+    if adsb is not None and adsb.enabled and recorded is not None and recorded.adsb_sigma_m is not None:
+        raise top.error_at(
+            "recorded.adsb_sigma_m",
+            "the adsb section simulates the ADS-B reports of recorded aircraft too: give their noise as adsb.sigma_m",
+        )
 
 
 def _parse_recorded_section(top: Fields, base_dir: Path | None, epoch: str | None) -> RecordedSpec | None:
@@ -427,6 +497,8 @@ def _parse_recorded_section(top: Fields, base_dir: Path | None, epoch: str | Non
 
 __all__ = [
     "LEG_TYPES",
+    "AdsbAircraftSpec",
+    "AdsbSpec",
     "RESERVED_MODE3A",
     "SCENARIO_TYPES",
     "AccelerateLeg",

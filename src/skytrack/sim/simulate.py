@@ -14,6 +14,12 @@ segments join the scripted targets and random traffic as targets after them
 window (``result.recorded``), the ADS-B reports of the recorded samples (``result.adsb``)
 and sensors.json's ``epoch_utc`` is the window's start.
 
+ADS-B (issue 9): with the scenario's ``adsb`` section, ``result.adsb`` holds the simulated
+reports of every equipped aircraft, recorded ones included (:mod:`skytrack.sim.adsb`), and
+``result.adsb_aircraft`` one row per aircraft (equipage, true and transmitted identity,
+faults).  Their generator is spawned from ``rng`` after the radars (equipage: the scenario
+seed's ``adsb`` stream), so the plots of a seed are the same with and without ADS-B.
+
 Airborne radars (``radar-airborne``, :mod:`skytrack.sim.carrier`) measure from their
 carrier's flight; their plots carry the carrier's state in the ``platform_*`` columns
 (present in the table only when the scenario has an airborne radar; NaN on the plots of
@@ -36,6 +42,7 @@ changing an ``iff`` section leaves every other column bit-identical.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,13 +53,14 @@ import pandas as pd
 from skytrack.core.plots import IFF_VALUES, PLATFORM_COLUMNS
 from skytrack.geo.sensors import SensorSet
 from skytrack.sim._validate import ScenarioError
+from skytrack.sim.adsb import AdsbSimulation, resolve_settings, simulate_adsb
 from skytrack.sim.carrier import Carriers, airborne_plots, build_carriers
 from skytrack.sim.iff import interrogation_mask, mode3a_int, respond
 from skytrack.sim.radar import MODE3A_CODES, PLOT_COLUMNS, clutter_plots, radar_plots
 from skytrack.sim.recorded import RecordedSpec, RecordedTraffic, prepare_recorded
 from skytrack.sim.recorded_motion import concatenate_trajectories
 from skytrack.sim.scenario import Scenario
-from skytrack.sim.spec import TARGET_IFF_STATUSES, RadarSimParams, TargetSpec
+from skytrack.sim.spec import TARGET_IFF_STATUSES, AdsbAircraftSpec, RadarSimParams, TargetSpec
 from skytrack.sim.traffic import seed_stream
 from skytrack.sim.trajectories import TrajectorySet, build_trajectories
 from skytrack.sim.truth import TruthTable, sample_truth
@@ -72,9 +80,10 @@ class SimulationResult:
     scenario: Scenario
     trajectories: TrajectorySet
     targets: pd.DataFrame  # one row per target: target_id, mode3a, icao24, transponder, start/end time, callsign
-    adsb: pd.DataFrame | None = None  # ADS-B reports of recorded traffic (FORMATS.md "adsb" + truth_id)
+    adsb: pd.DataFrame | None = None  # ADS-B reports (FORMATS.md "adsb" + truth_id): simulated, or recorded samples
     recorded: RecordedTraffic | None = None  # cleaning counts, window and samples of recorded traffic
     carriers: Carriers | None = None  # flights of the airborne radars' carriers
+    adsb_aircraft: pd.DataFrame | None = None  # simulated ADS-B: one row per aircraft (skytrack.sim.adsb.AIRCRAFT_COLUMNS)
 
 
 def simulate(
@@ -100,8 +109,12 @@ def simulate(
                 "skytrack.io.read_state_vectors and pass it as simulate(..., recorded=states), or use "
                 "skytrack.app.simulate.run_simulation"
             )
+        recorded_spec = scenario.recorded or RecordedSpec()
+        if _adsb_on(scenario):
+            # the adsb section simulates these aircraft's reports (adsb_sigma_m is refused with it: no draw skipped)
+            recorded_spec = dataclasses.replace(recorded_spec, adsb=False)
         from_recording = prepare_recorded(
-            recorded, scenario.recorded or RecordedSpec(), scenario.origin, scenario.duration_s, scenario.epoch_utc,
+            recorded, recorded_spec, scenario.origin, scenario.duration_s, scenario.epoch_utc,
             sensor_rng, source=f"{scenario.source}: recorded",
         )
         try:
@@ -140,19 +153,48 @@ def simulate(
             parts.append(columns)
         report(done + (1.0 - done) * (number + 1) / len(radars) * 0.95)
     plots = _plot_frame(parts, [s.name for s in radars])
+    truth_frame = _truth_frame(truth, traj)
+    target_frame = _target_frame(targets, traj, from_recording)
+    adsb = None if from_recording is None else from_recording.adsb
+    adsb_aircraft = None
+    if _adsb_on(scenario):
+        # spawned after the radars' draws and IFF children: the plots do not depend on ADS-B
+        simulated = _simulate_adsb(scenario, targets, truth_frame, target_frame, _spawn(sensor_rng, 1)[0])
+        adsb, adsb_aircraft = simulated.reports, simulated.aircraft
     result = SimulationResult(
         plots=plots,
-        truth=_truth_frame(truth, traj),
+        truth=truth_frame,
         sensors=sensors,
         scenario=scenario,
         trajectories=traj,
-        targets=_target_frame(targets, traj, from_recording),
-        adsb=None if from_recording is None else from_recording.adsb,
+        targets=target_frame,
+        adsb=adsb,
         recorded=from_recording,
         carriers=carriers,
+        adsb_aircraft=adsb_aircraft,
     )
     report(1.0)
     return result
+
+
+def _adsb_on(scenario: Scenario) -> bool:
+    return scenario.adsb is not None and scenario.adsb.enabled
+
+
+def _simulate_adsb(scenario: Scenario, targets: list[TargetSpec], truth: pd.DataFrame, target_frame: pd.DataFrame,
+                   rng: np.random.Generator) -> AdsbSimulation:
+    """The scenario's ADS-B reports: settings of the section and of the targets, recorded
+    aircraft unequipped when their section says ``adsb: false``."""
+    spec = scenario.adsb
+    ids = target_frame["target_id"].to_numpy(dtype=object)
+    icao24 = target_frame["icao24"].to_numpy(dtype=object)
+    settings: dict[str, AdsbAircraftSpec] = {}
+    if scenario.recorded is not None and not scenario.recorded.adsb:
+        settings.update(dict.fromkeys(ids[len(targets):].tolist(), AdsbAircraftSpec(equipped=False)))
+    settings.update(resolve_settings(spec.aircraft, ids, icao24, scenario.source))
+    settings.update({target.id: target.adsb for target in targets if target.adsb is not None})
+    return simulate_adsb(truth, spec, rng, origin=scenario.origin, aircraft=target_frame, settings=settings,
+                         equipage_rng=seed_stream(scenario.seed, "adsb"))
 
 
 def _spawn(rng: np.random.Generator, count: int) -> list[np.random.Generator]:
@@ -262,6 +304,7 @@ def _target_frame(targets: list[TargetSpec], traj: TrajectorySet, from_recording
     n_recorded = len(traj) - len(targets)
     legs = np.array([len(t.legs) for t in targets] + [0] * n_recorded, dtype=np.int64)
     callsign = np.full(len(traj), None, dtype=object)
+    callsign[: len(targets)] = [t.callsign for t in targets]
     if from_recording is not None:
         callsign[len(targets):] = from_recording.callsign
     return pd.DataFrame(

@@ -1,6 +1,6 @@
 """Scenario dataclasses: the validated sections of a scenario file (legs, targets, radar
 simulation parameters with their clutter patches, IFF interrogator and airborne carrier,
-random traffic), shared by the loader
+random traffic, simulated ADS-B), shared by the loader
 (:mod:`skytrack.sim.scenario`), the traffic generator (:mod:`skytrack.sim.traffic`), the
 trajectories and the radar model.
 
@@ -76,6 +76,47 @@ class LandLeg:
     field_alt_m: float = 0.0
 
 
+@dataclass(frozen=True)
+class AdsbAircraftSpec:
+    """ADS-B settings of one aircraft (issue 9, spec 001 input data): a target's ``adsb``
+    mapping or an entry of the scenario's ``adsb.aircraft``.
+
+    ``equipped`` None leaves the aircraft to the scenario's ``equipage`` fraction.  The
+    faults: ``offset_m`` is a constant ENU (east, north) error of every reported position
+    (a faulty navigation source); ``wrong_icao24`` / ``wrong_callsign`` is the identity
+    transmitted instead of the true one (True: a derived value of no other aircraft);
+    ``no_callsign`` transmits no flight identification."""
+
+    equipped: bool | None = None
+    offset_m: tuple[float, float] = (0.0, 0.0)
+    wrong_icao24: str | bool | None = None
+    wrong_callsign: str | bool | None = None
+    no_callsign: bool = False
+
+
+@dataclass(frozen=True)
+class AdsbSpec:
+    """The scenario's ``adsb`` section: simulated ADS-B reports of the aircraft (keys in
+    :mod:`skytrack.sim.scenario`; the model in :mod:`skytrack.sim.adsb`).
+
+    ``aircraft`` holds the per-aircraft settings given in this section as ``(id, key path,
+    settings)``; the ids are checked against the targets when the scenario is simulated
+    (random traffic and recorded segments are known only then)."""
+
+    enabled: bool = True
+    interval_s: float = 1.0
+    jitter_s: float = 0.05
+    sigma_m: float = 10.0
+    sigma_alt_m: float = 15.0
+    velocities: bool = True
+    sigma_velocity_mps: float = 1.0
+    p_drop: float = 0.0
+    outages: tuple[tuple[float, float], ...] = ()
+    equipage: float = 1.0
+    coverage_m: float | None = None
+    aircraft: tuple[tuple[str, str, AdsbAircraftSpec], ...] = ()
+
+
 Leg = StraightLeg | TurnLeg | ClimbLeg | AccelerateLeg | SingerLeg | WaypointsLeg | LandLeg
 
 
@@ -98,6 +139,10 @@ class TargetSpec:
     """true IFF status ("friend" or "foe"); None = no IFF transponder (never replies)"""
     iff_p_reply: float | None = None
     """this target's probability of an IFF reply; None = the radar's ``p_reply``"""
+    callsign: str | None = None
+    """flight identification (ADS-B); None = derived from the id when the target transmits ADS-B"""
+    adsb: AdsbAircraftSpec | None = None
+    """this target's ADS-B settings (equipage, faults); None = the scenario's ``adsb`` rules"""
 
 
 @dataclass(frozen=True)

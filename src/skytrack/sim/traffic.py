@@ -33,12 +33,12 @@ from skytrack.sim.spec import (
 )
 
 # a new purpose goes at the end: SeedSequence children are numbered, so the others keep their streams
-_STREAMS = ("traffic", "motion", "sensors", "airfield", "carriers")
+_STREAMS = ("traffic", "motion", "sensors", "airfield", "carriers", "adsb")
 
 
 def seed_stream(seed: int, purpose: str) -> np.random.Generator:
     """Independent generator for one purpose (``traffic``, ``motion``, ``sensors``, ``airfield``,
-    ``carriers``) of a scenario seed."""
+    ``carriers``, ``adsb`` (equipage)) of a scenario seed."""
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(len(_STREAMS))[_STREAMS.index(purpose)])
 
 
