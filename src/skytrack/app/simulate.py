@@ -1,5 +1,6 @@
 """The simulation pipeline: a scenario (file or bundled name) to plots, truth and sensors.json,
-and ADS-B reports when the scenario flies recorded traffic.
+and ADS-B reports when the scenario has an ``adsb`` section (simulated reports, with the
+true target id as ``truth_id``) or flies recorded traffic.
 
 Recorded traffic is read here (:func:`skytrack.io.read_state_vectors`: the simulator in
 ``skytrack.sim`` sits below ``skytrack.io`` and reads no files) from the scenario's
@@ -97,7 +98,8 @@ def run_simulation(
 
 def write_simulation(result: SimulationResult, out: str | Path, fmt: str = "parquet") -> dict[str, Path]:
     """Write ``plots.<fmt>``, ``truth.<fmt>`` and ``sensors.json`` into ``out`` (and
-    ``adsb.<fmt>`` for recorded traffic with ADS-B reports); returns their paths."""
+    ``adsb.<fmt>`` when the result has ADS-B reports: an ``adsb`` section, or recorded
+    traffic); returns their paths."""
     from skytrack.io import write_adsb, write_plots, write_sensors, write_truth
 
     if fmt not in TABLE_FORMATS:

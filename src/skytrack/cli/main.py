@@ -115,7 +115,7 @@ def main(
 @reports_input_errors
 def simulate(
     scenario: Annotated[Optional[str], typer.Argument(help="Scenario YAML file, or the name of a bundled scenario (demo, two_radars, radar3d, crossing, recorded_switzerland, ...).")] = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder for plots, truth and sensors.json (and adsb for recorded traffic).")] = ...,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder for plots, truth and sensors.json (and adsb when the scenario has ADS-B or recorded traffic).")] = ...,
     scenario_option: Annotated[Optional[str], typer.Option("--scenario", help="The scenario, as an option (same as the argument).")] = None,
     trajectories: Annotated[Optional[str], typer.Option("--trajectories", help="Recorded state vectors flown as truth (Parquet, CSV or JSON lines of the traffic or OpenSky layout; or a bundled recording's name): replaces the scenario's recorded file.")] = None,
     start: Annotated[Optional[str], typer.Option("--start", help="Time 0 on the recording: ISO-8601 UTC (2018-08-01T11:20:00Z) or seconds after its first time stamp.")] = None,
@@ -123,7 +123,7 @@ def simulate(
     seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise (default: the scenario's).")] = None,
     fmt: Annotated[str, typer.Option("--format", help="Table format: parquet or csv.")] = "parquet",
 ) -> None:
-    """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md); recorded traffic also gives ADS-B reports."""
+    """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md); a scenario with an adsb section or recorded traffic also gives ADS-B reports."""
     from skytrack.app.simulate import TABLE_FORMATS, run_simulation, write_simulation
 
     if fmt not in TABLE_FORMATS:
@@ -151,8 +151,14 @@ def _print_simulation_summary(result, paths: dict) -> None:
         recorded = result.recorded
         table.add_row("recorded window", f"{recorded.epoch_utc} + {result.scenario.duration_s:g} s: "
                                          f"{len(recorded.trajectories)} segments")
-        if result.adsb is not None:
-            table.add_row("ADS-B reports", str(len(result.adsb)))
+    if result.adsb is not None:
+        table.add_row("ADS-B reports", str(len(result.adsb)))
+    if result.adsb_aircraft is not None:
+        aircraft = result.adsb_aircraft
+        faults = aircraft.loc[aircraft["fault"].fillna("") != "", ["target_id", "fault"]]
+        shown = ", ".join(f"{row.target_id} ({row.fault})" for row in faults.itertuples())
+        table.add_row("ADS-B aircraft", f"{int(aircraft['equipped'].sum())} of {len(aircraft)} equipped"
+                                        + (f"; faults: {shown}" if shown else ""))
     for name, path in paths.items():
         table.add_row(name, str(path))
     console.print(table)
