@@ -20,6 +20,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from skytrack.cli.study_fuzzy import register_fuzzy_studies
+from skytrack.cli.study_ident_mc import register_mc_studies
 from skytrack.cli.study_ident_potential import register_potential_studies
 from skytrack.cli.study_maneuver import register_maneuver_studies
 
@@ -27,6 +28,7 @@ study_app = typer.Typer(help="Reproduce the studies of the papers in shared/spec
 register_maneuver_studies(study_app)  # spec 004 §6: skytrack study kf-gains, ...
 register_fuzzy_studies(study_app)  # spec 003 §6: skytrack study fuzzy-fig2, fuzzy-regions, fuzzy-gate, ...
 register_potential_studies(study_app)  # spec 001 §6 E1-E4: skytrack study ident-potential, ident-np-design, ident-elliptic
+register_mc_studies(study_app)  # spec 001 §6 E5-E9: skytrack study ident-sequential-mc, ..., ident-many-to-many
 
 #: E5: for P_D >= this, the Monte Carlo ratios must lie within 1 +- MC_BAND
 MC_PD_CHECKED = 0.7
