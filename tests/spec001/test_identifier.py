@@ -85,8 +85,8 @@ def _crossing_reports(seed=3, n_pairs=12, duration=60.0):
     return rows
 
 
-def _run_identifier(rows, compiled, chunk=7):
-    identifier = TrackIdentifier(IdentifierConfig(q=0.5, gate_m=1000.0, batch_s=2.0, compiled=compiled))
+def _run_identifier(rows, compiled, chunk=7, **settings):
+    identifier = TrackIdentifier(IdentifierConfig(q=0.5, gate_m=1000.0, batch_s=2.0, compiled=compiled, **settings))
     for start in range(0, len(rows), chunk):
         part = rows[start:start + chunk]
         identifier.process([r[1] for r in part], [r[2] for r in part], [r[0] for r in part],
@@ -94,9 +94,10 @@ def _run_identifier(rows, compiled, chunk=7):
     return identifier
 
 
-def test_compiled_loop_equals_numpy_reference():
+@pytest.mark.parametrize("settings", [{}, {"report_gate": 0.99, "horizon_s": 10.0}])
+def test_compiled_loop_equals_numpy_reference(settings):
     rows = _crossing_reports()
-    fast, slow = _run_identifier(rows, True), _run_identifier(rows, False)
+    fast, slow = _run_identifier(rows, True, **settings), _run_identifier(rows, False, **settings)
     size = fast.pairs.size
     assert size == slow.pairs.size > 12  # neighbours 300 m apart are candidates too
     np.testing.assert_allclose(fast.pairs.statistic[:size], slow.pairs.statistic[:size], rtol=1e-9, atol=1e-9)
@@ -104,6 +105,8 @@ def test_compiled_loop_equals_numpy_reference():
     np.testing.assert_allclose(fast.tracks.J, slow.tracks.J, rtol=1e-9)
     np.testing.assert_allclose(fast.pairs.joint.P[:size], slow.pairs.joint.P[:size], rtol=1e-8, atol=1e-9)
     assert fast.stats == slow.stats
+    if settings:
+        assert fast.stats["reports_gated"] > 0 and fast.stats["pairs_refreshed"] > 0
 
 
 def test_assignment_identifies_every_pair_and_drops_neighbours():

@@ -58,6 +58,8 @@ class RunSummary:
     """rows written to the identity-events file"""
     no_identity_events_reason: str | None = None
     """why no identity-events file was written (``None`` when one was)"""
+    identification: dict | None = None
+    """with ADS-B: what the labelling did (:class:`skytrack.app.identification.LabelStats`)"""
 
     @property
     def plots_per_s(self) -> float:
@@ -72,6 +74,7 @@ class RunSummary:
             "no_tracks_reason": self.no_tracks_reason, "identity_events_file": self.identity_events_file,
             "identity_event_rows": self.identity_event_rows,
             "no_identity_events_reason": self.no_identity_events_reason,
+            "identification": self.identification,
         }
 
 
@@ -86,6 +89,8 @@ def run_tracking(
     progress: ProgressCallback | None = None,
     units_confirmed: bool = False,
     range_rate_positive_closing: bool = False,
+    adsb_path: str | Path | None = None,
+    identification=None,
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
@@ -96,7 +101,10 @@ def run_tracking(
     ``progress("track", plots_read, total_rows_or_None)`` is called after every chunk.  Values that
     look like kilometres or radians stop the run unless ``units_confirmed``.  With
     ``range_rate_positive_closing`` the file's range rates are positive for closing targets and are
-    negated on reading (skytrack's convention is ``dD/dt``).
+    negated on reading (skytrack's convention is ``dD/dt``).  With ``adsb_path`` the tracks are
+    labelled with the ADS-B identities the spec 001 test decides for them
+    (:mod:`skytrack.app.identification`, settings ``identification``), and the label changes are
+    identity events.
     """
     from skytrack.io import ReadReport, identity_events_path, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.identity_events import IdentityEventWriter
@@ -116,6 +124,10 @@ def run_tracking(
     report = ReadReport(file=str(plots_path)) if lenient else None
     total = count_rows(plots_path)
     tracker = Tracker(sensor_set, config)
+    labeler = None
+    if adsb_path is not None:
+        labeler = _adsb_labeler(adsb_path, sensor_set, identification, config)
+        tracker.record_assignments()
     started = time.perf_counter()
     plots_read = 0
     report_progress("track", 0, total)
@@ -127,15 +139,14 @@ def run_tracking(
                                        range_rate_positive_closing=range_rate_positive_closing):
             tracker.feed(chunk, source=str(plots_path))
             first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
-            writer.write(tracker.drain_arrow(), checked=True)
-            events.write(tracker.drain_identity_events())
+            _write_chunk(tracker, labeler, writer, events)
             plots_read += len(chunk)
             report_progress("track", plots_read, total)
         tracker.finish()
-        writer.write(tracker.drain_arrow(), checked=True)
-        events.write(tracker.drain_identity_events())
-        events.close(create=tracker.identity_seen)
-        if not tracker.identity_seen:
+        _write_chunk(tracker, labeler, writer, events)
+        identity_seen = tracker.identity_seen or labeler is not None
+        events.close(create=identity_seen)
+        if not identity_seen:
             events_path.unlink(missing_ok=True)  # a previous run's events do not belong to these tracks
         # evaluate measures times (to the first track, ...) from the input's start, not the first track's
         writer.run_metadata = {
@@ -151,11 +162,36 @@ def run_tracking(
     )
     if summary.track_rows == 0:
         summary.no_tracks_reason = no_tracks_reason(summary, config)
-    if tracker.identity_seen:
+    if labeler is not None:
+        summary.identification = labeler.stats.to_dict()
+    if identity_seen:
         summary.identity_events_file, summary.identity_event_rows = str(events_path), events.rows
     else:
         summary.no_identity_events_reason = "no plot carried a Mode 3/A code, a Mode S address or an IFF reply"
     return summary
+
+
+def _adsb_labeler(adsb_path, sensor_set, identification, config):
+    from skytrack.app.identification import DEFAULT_ADSB_SIGMA_M, AdsbLabeler, covered_area
+    from skytrack.io import read_adsb
+
+    if config.output.full_covariance and identification is not None and identification.fuse:
+        raise ValueError("--adsb-fuse writes the fused position and velocity variances; it cannot also write "
+                         "the full covariance (--full-covariance)")
+    adsb = read_adsb(adsb_path, sensors=sensor_set, default_sigma_m=DEFAULT_ADSB_SIGMA_M)
+    if len(adsb) == 0:
+        raise ValueError(f"{adsb_path}: no ADS-B report to identify tracks with")
+    return AdsbLabeler(adsb, covered_area(sensor_set, adsb), identification)
+
+
+def _write_chunk(tracker, labeler, writer, events) -> None:
+    """The track rows and identity events produced so far, labelled with ADS-B when it is given."""
+    table = tracker.drain_arrow()
+    events.write(tracker.drain_identity_events())
+    if labeler is not None:
+        table, adsb_events = labeler.label(table, tracker.drain_assignments())
+        events.write(adsb_events)
+    writer.write(table, checked=True)
 
 
 def no_tracks_reason(summary: RunSummary, config: TrackerConfig) -> str:

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from skytrack.identify.assignment import PairTable, assign_pairs
 from skytrack.identify.kalman import FilterBank
+from skytrack.identify.kernels import MAX_CONSECUTIVE_GATED
 from skytrack.identify.model import IdentificationModel, cv_model
 from skytrack.identify.pairing import PairBank, ReportHistory, replay_pairs
 from skytrack.identify.sequential import DIFFERENT, INSUFFICIENT, SAME, merge_order
@@ -76,6 +77,11 @@ class IdentifierConfig:
     With process noise in the model and smoother true motion, Λ of true pairs drifts upwards with
     the number of reports (its variance grows even when the model holds, TV-5c); a horizon
     bounds that drift at the price of the evidence older than the horizon (skytrack addition)"""
+    report_gate: float | None = None
+    """leave out a report whose normalised innovation in its own track's filter exceeds the
+    χ²_m quantile of this probability (e.g. 0.9999): a clutter plot a radar track took would
+    otherwise condemn every pair of the track at once; the third such report in a row is taken
+    (a manoeuvre, not an outlier) (skytrack addition; None: keep all)"""
     compiled: bool = True
 
     def __post_init__(self):
@@ -85,6 +91,8 @@ class IdentifierConfig:
             raise ValueError(f"cost must be one of {COSTS}, got {self.cost!r}")
         if self.cost == "bayes" and not (self.object_density and self.object_density > 0):
             raise ValueError("cost='bayes' needs object_density (objects per unit of state space, > 0)")
+        if self.report_gate is not None and not 0.0 < self.report_gate < 1.0:
+            raise ValueError(f"report_gate must be a probability in (0, 1) or None, got {self.report_gate}")
         if self.horizon_s is not None and not self.horizon_s > 0:
             raise ValueError(f"horizon_s must be > 0 or None, got {self.horizon_s}")
         for name in ("gate_m", "batch_s"):
@@ -143,12 +151,14 @@ class TrackIdentifier:
         self.tracks = FilterBank(self.model, 0)
         self.track_side = np.zeros(0, dtype=np.int8)
         self.track_alive = np.zeros(0, dtype=bool)
+        self.gated_in_row = np.zeros(0, dtype=np.int64)
         self.track_ids: list = []
         self._rows: tuple[dict, dict] = ({}, {})
         self.pairs = PairBank(self.model)
         self.history = ReportHistory(self.model.n, config.history) if config.pair_init == "replay" else None
         self.time = -np.inf
-        self.stats = {"reports": 0, "pair_updates": 0, "pairs_created": 0, "pairs_dropped": 0, "batches": 0}
+        self.stats = {"reports": 0, "pair_updates": 0, "pairs_created": 0, "pairs_dropped": 0, "batches": 0,
+                      "reports_gated": 0, "pairs_refreshed": 0}
         dof = self.model.n
         self._drop_gate = float(drop_gate(dof, config.drop_quantile)[0])
 
@@ -170,9 +180,11 @@ class TrackIdentifier:
             start = len(self.track_ids)
             size = start + len(new)
             self.track_ids.extend(new)
-            self.tracks.grow(max(size, 2 * len(self.tracks)))
+            if size > len(self.tracks):
+                self.tracks.grow(max(size, 2 * len(self.tracks), 64))
             self.track_side = _grown(self.track_side, len(self.tracks), 0)
             self.track_alive = _grown(self.track_alive, len(self.tracks), False)
+            self.gated_in_row = _grown(self.gated_in_row, len(self.tracks), 0)
             self.track_side[start:size] = side
             self.track_alive[start:size] = True
             if self.history is not None:
@@ -234,22 +246,38 @@ class TrackIdentifier:
             V_pad = np.zeros((len(rows), n, n))
             V_pad[:, :m, :m] = V
             bank, pairs = self.tracks, self.pairs
-            self.stats["pair_updates"] += int(process_reports(
+            updates, gated = process_reports(
                 rows, time, z_pad, np.full(len(rows), m, dtype=np.int64), V_pad, self.model.ndim, self.kernel_q,
                 bank.t, bank.full, bank.Y, bank.y, bank.c0, bank.x, bank.P, bank.J, bank.L, bank.m, bank.rank,
                 ptr, adjacency, pairs.alive, pairs.joint.t, pairs.joint.x, pairs.joint.P, pairs.statistic,
-                pairs.updates, pairs.exceed, pairs.dropped_at, self._drop_gate, self.config.drop_count))
+                pairs.updates, pairs.exceed, pairs.dropped_at, self._drop_gate, self.config.drop_count,
+                self._report_gate(m), self.gated_in_row)
+            self.stats["pair_updates"] += int(updates)
+            self.stats["reports_gated"] += int(gated)
         else:
             self._process_reference(rows, time, z, V, ptr, adjacency)
         self.stats["pairs_dropped"] += alive_before - int(self.pairs.alive.sum())
+
+    def _report_gate(self, m: int) -> float:
+        if self.config.report_gate is None:
+            return 0.0
+        return float(drop_gate(m, self.config.report_gate)[0])
 
     def _process_reference(self, rows, time, z, V, ptr, adjacency) -> None:
         """The numpy reference of the compiled loop: report by report, every pair of the report's track."""
         H = np.eye(z.shape[1], self.model.n)
         pairs = self.pairs
+        gate = self._report_gate(z.shape[1])
         for r in range(len(rows)):
             k = rows[r:r + 1]
             self.tracks.predict(k, time[r])
+            if gate > 0 and self.tracks.full[k[0]]:
+                if self.tracks.normalised_innovation(k, z[r:r + 1], V[r:r + 1], H)[0] > gate and \
+                        self.gated_in_row[k[0]] < MAX_CONSECUTIVE_GATED:
+                    self.gated_in_row[k[0]] += 1
+                    self.stats["reports_gated"] += 1
+                    continue
+                self.gated_in_row[k[0]] = 0
             own = self.tracks.update(k, z[r:r + 1], V[r:r + 1], H).quadratic[0]
             members = adjacency[ptr[k[0]]:ptr[k[0] + 1]]
             members = members[pairs.alive[members]]
@@ -310,7 +338,7 @@ class TrackIdentifier:
         pairs.joint.x[old], pairs.joint.P[old], pairs.joint.t[old] = x, P, t
         pairs.statistic[old] = track_states_test(x_i, P_i, x_j, P_j)
         pairs.created_at[old] = t
-        self.stats["pairs_refreshed"] = self.stats.get("pairs_refreshed", 0) + len(old)
+        self.stats["pairs_refreshed"] += len(old)
 
     def _predicted_positions(self, rows: np.ndarray, t: float) -> np.ndarray:
         nd = self.model.ndim

@@ -226,6 +226,14 @@ class FilterBank:
             self.full[r] = True
         return quadratic
 
+    def normalised_innovation(self, rows: np.ndarray, z: np.ndarray, V: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """ν^T S^{-1} ν of reports against covariance-form ``rows`` at the report time (no change)."""
+        x, P = self.x[rows], self.P[rows]
+        H = np.broadcast_to(H, (len(rows),) + np.shape(H)[-2:])
+        nu = z - np.einsum("kij,kj->ki", H, x)
+        S = H @ P @ np.swapaxes(H, -1, -2) + V
+        return np.einsum("ki,ki->k", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+
     # ------------------------------------------------------------------ views
     def estimate_at(self, rows: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States and covariances of full-rank ``rows`` predicted to ``t`` (the bank is not changed)."""

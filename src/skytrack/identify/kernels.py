@@ -20,6 +20,9 @@ from numba import njit
 
 from skytrack.identify.kalman import RANK_TOLERANCE
 
+#: outliers left out in a row before the next one is taken as the track's motion
+MAX_CONSECUTIVE_GATED = 2
+
 
 @njit(cache=True)
 def cv_transition(ndim, dt, q, F, Q):
@@ -180,9 +183,33 @@ def _information_minimum(Y, y, c0):
 
 
 @njit(cache=True)
+def _normalised_innovation(x, P, z, V, m, chol, solve):
+    """ν^T S^{-1} ν of a report against a covariance-form filter (nothing changes)."""
+    for i in range(m):
+        for j in range(i + 1):
+            total = P[i, j] + V[i, j]
+            for k in range(j):
+                total -= chol[i, k] * chol[j, k]
+            if i == j:
+                chol[i, i] = np.sqrt(total)
+            else:
+                chol[i, j] = total / chol[j, j]
+    quadratic = 0.0
+    for i in range(m):
+        total = z[i] - x[i]
+        for k in range(i):
+            total -= chol[i, k] * solve[k]
+        solve[i] = total / chol[i, i]
+        quadratic += solve[i] ** 2
+    return quadratic
+
+
+@njit(cache=True)
 def _update_track(k, t, z, V, m, ndim, q, tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x, tr_P, tr_J, tr_L, tr_m, tr_rank,
-                  F, Q, work):
-    """Predict and update track k; returns the increment of its J."""
+                  F, Q, work, report_gate, tr_gated):
+    """Predict and update track k; returns the increment of its J, or NaN when the report is an
+    outlier of the track's own filter (normalised innovation above ``report_gate`` > 0): it is
+    then left out, for the track and its pairs."""
     n = 2 * ndim
     if np.isfinite(tr_t[k]):
         dt = t - tr_t[k]
@@ -193,6 +220,13 @@ def _update_track(k, t, z, V, m, ndim, q, tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x
                 cv_transition(ndim, dt, q, F, Q)
                 _predict_information(tr_Y[k], tr_y[k], tr_c0[k:k + 1], F, Q, q)
     tr_t[k] = t
+    if tr_full[k] and report_gate > 0.0:
+        # a lone outlier is left out; a run of them is the track's real motion and is taken
+        if _normalised_innovation(tr_x[k], tr_P[k], z, V, m, work[0], work[4, 0]) > report_gate \
+                and tr_gated[k] < MAX_CONSECUTIVE_GATED:
+            tr_gated[k] += 1
+            return np.nan
+        tr_gated[k] = 0
     tr_m[k] += m
     if tr_full[k]:
         quadratic, logdet = _update_covariance(tr_x[k], tr_P[k], z, V, m, work)
@@ -227,18 +261,22 @@ def process_reports(report_track, report_time, report_z, report_m, report_V, ndi
                     tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x, tr_P, tr_J, tr_L, tr_m, tr_rank,
                     adj_ptr, adj_pair,
                     pr_alive, pr_t, pr_x, pr_P, pr_lam, pr_updates, pr_exceed, pr_dropped_at,
-                    drop_gate, drop_count):
+                    drop_gate, drop_count, report_gate, tr_gated):
     """Process reports in the given (merge) order; tracks and pairs change in place.
 
     ``adj_ptr``/``adj_pair`` list, per track row, the pair rows it belongs to (CSR).  A pair
     whose Λ exceeds ``drop_gate`` on ``drop_count`` consecutive updates dies, with its
-    time in ``pr_dropped_at``.  Returns the number of pair updates done.
+    time in ``pr_dropped_at``.  A report whose normalised innovation in its track's own filter
+    exceeds ``report_gate`` (when > 0) is left out, unless it is the third in a row
+    (``tr_gated`` counts them per track).  Returns the number of pair updates done and
+    of reports left out.
     """
     n = 2 * ndim
     F = np.empty((n, n))
     Q = np.empty((n, n))
     work = np.zeros((5, max(n, 3), n))
     pair_updates = 0
+    gated = 0
     for r in range(len(report_track)):
         k = report_track[r]
         t = report_time[r]
@@ -246,7 +284,10 @@ def process_reports(report_track, report_time, report_z, report_m, report_V, ndi
         z = report_z[r]
         V = report_V[r]
         own = _update_track(k, t, z, V, m, ndim, q, tr_t, tr_full, tr_Y, tr_y, tr_c0, tr_x, tr_P, tr_J, tr_L, tr_m,
-                            tr_rank, F, Q, work)
+                            tr_rank, F, Q, work, report_gate, tr_gated)
+        if np.isnan(own):
+            gated += 1
+            continue
         for a in range(adj_ptr[k], adj_ptr[k + 1]):
             p = adj_pair[a]
             if not pr_alive[p]:
@@ -266,4 +307,4 @@ def process_reports(report_track, report_time, report_z, report_m, report_V, ndi
                     pr_dropped_at[p] = t
             else:
                 pr_exceed[p] = 0
-    return pair_updates
+    return pair_updates, gated

@@ -84,17 +84,24 @@ class CompiledStages:
         if n_tracks:
             t_ref, expected, nearby, outside = self._expect_compiled(s, w_start, w_end)
             status_now = np.where(nearby, bank.status, -1).astype(np.int8)
-            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage)
+            plot_track = np.full(len(plots), -1, np.int64)
+            self._stages_compiled(s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage,
+                                  plot_track)
+            if self.assignment_log is not None:
+                # stages 0 and 1 are confirmed tracks; identification ignores tentative ones
+                taken = np.flatnonzero((plot_stage >= 0) & (plot_stage < 2))
+                self._log_assignments(plot_track[taken], taken, plots, converted)
         self.stats["plots_assigned"] += int(plot_used.sum())
         self._initiate_manage_compiled(s, plots, converted, np.flatnonzero(~plot_used), hit, expected, outside,
                                        w_start, w_end, plot_stage)
 
-    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage) -> None:
+    def _stages_compiled(self, s, plots, converted, status_now, expected, t_ref, hit, plot_used, plot_stage,
+                         plot_track) -> None:
         storage, columns = self.bank.storage, self.bank.column_storage
         _, psi, _, _, q_big, *_ = self._switch_arrays()
         candidates, manoeuvre_hits = stages_cv(
             self.manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, storage.x, storage.P, columns["t"],
-            columns["alt_m"], psi, q_big, *self._stage_arguments(s, plots, converted), plot_stage,
+            columns["alt_m"], psi, q_big, *self._stage_arguments(s, plots, converted), plot_stage, plot_track,
         )
         self.stats["candidate_pairs"] += candidates
         self.stats["manoeuvre_gate_hits"] += manoeuvre_hits

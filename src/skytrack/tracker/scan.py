@@ -181,6 +181,9 @@ class ScanProcessor(CompiledStages):
         #: bank rows whose identity changed in the last window, when the compiled end of window
         #: listed them (None: :func:`skytrack.tracker.identity.changed_rows` finds them)
         self.identity_changed: np.ndarray | None = None
+        #: with :meth:`record_assignments`: (track_id, time, sensor, position, covariance) of every plot
+        #: a confirmed track took, for identification against other systems (spec 001)
+        self.assignment_log: list | None = None
         self._standard_columns = set(STANDARD_COLUMNS)
         # coverage of every radar, for "no plot is due outside coverage" (Schedule.in_any_coverage)
         radars = [r for r in sensors.sensors if r.is_radar]
@@ -261,6 +264,8 @@ class ScanProcessor(CompiledStages):
                 hit[assigned_tracks] = True
                 plot_used[assigned_plots] = True
                 plot_stage[assigned_plots] = stage_index
+                if self.assignment_log is not None and stage != "tentative":
+                    self._log_assignments(assigned_tracks, assigned_plots, plots, converted)
             if not compiled_window:
                 self.lifecycle.record_events(bank, hit, expected, w_end, self.scoring.log_miss[s])
         self.stats["plots_assigned"] += int(plot_used.sum())
@@ -274,6 +279,13 @@ class ScanProcessor(CompiledStages):
             self._manage_compiled(s, hit, expected, outside, w_end)
         else:
             self.lifecycle.manage(bank, outside, *self._score_settings(s)[1:])
+
+    def _log_assignments(self, track_rows: np.ndarray, plot_rows: np.ndarray, plots: PlotBatch,
+                         converted: ConvertedPlots) -> None:
+        if len(plot_rows):
+            self.assignment_log.append((self.bank.track_id[track_rows].copy(), plots.time[plot_rows],
+                                        plots.sensor[plot_rows], converted.position[plot_rows],
+                                        converted.covariance[plot_rows]))
 
     def _positions_at(self, t: float) -> np.ndarray:
         """Deterministic 3-D position extrapolation of every track (no covariance), for geometry."""

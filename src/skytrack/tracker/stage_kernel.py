@@ -145,13 +145,13 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
               plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate, replace_height, sensor_alt, earth,
               var_r, var_az, var_h, rot, origin, miss, max_dense, psi_enabled, psi_on, psi_off, psi_memory, two_point,
               nis_avg, filter_updates, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a,
-              plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max, plot_stage):
+              plot_mode_s, plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max, plot_stage, plot_track):
     """The association stages of a window in one call: 0 confirmed tracks,
     1 quiet confirmed tracks that found nothing through the manoeuvre gate (when
     ``manoeuvre_gate``), 2 tentative tracks — each on the plots left by the stages before
     (:meth:`skytrack.tracker.scan.ScanProcessor.process`).  ``status_now`` is each track's status,
-    or -1 when it is too far from the swept sector; ``hit``, ``plot_used`` and ``plot_stage`` (the
-    stage that took each plot) are updated.
+    or -1 when it is too far from the swept sector; ``hit``, ``plot_used``, ``plot_stage`` (the
+    stage that took each plot) and ``plot_track`` (the bank row that took it) are updated.
     Returns the number of candidate pairs and of manoeuvre-gate hits.
     """
     n_tracks = len(status_now)
@@ -198,6 +198,7 @@ def stages_cv(manoeuvre_gate, status_now, expected, t_ref, hit, plot_used, x_all
             hit[rows[c]] = True
             plot_used[plot_rows[c]] = True
             plot_stage[plot_rows[c]] = stage
+            plot_track[plot_rows[c]] = rows[c]
         if forced:
             manoeuvre_hits += len(rows)
     return candidates, manoeuvre_hits

@@ -157,6 +157,27 @@ class Tracker:
         outputs, self.outputs = self.outputs, []
         return tracks_arrow(self._table(outputs))
 
+    def record_assignments(self) -> None:
+        """From now on, keep every plot a confirmed track takes, for :meth:`drain_assignments`."""
+        if self.scan.assignment_log is None:
+            self.scan.assignment_log = []
+
+    def drain_assignments(self) -> dict[str, np.ndarray] | None:
+        """The plots confirmed tracks took since the last call (after :meth:`record_assignments`):
+        ``track_id``, ``time``, ``sensor`` (index), ``position`` ``[K, 3]`` and ``covariance``
+        ``[K, 3, 3]`` in the common frame, in processing order; ``None`` when not recording."""
+        log = self.scan.assignment_log
+        if log is None:
+            return None
+        self.scan.assignment_log = []
+        dim = 3
+        if not log:
+            return {"track_id": np.zeros(0, np.int64), "time": np.zeros(0), "sensor": np.zeros(0, np.int64),
+                    "position": np.zeros((0, dim)), "covariance": np.zeros((0, dim, dim))}
+        ids, times, sensors, positions, covariances = zip(*log)
+        return {"track_id": np.concatenate(ids), "time": np.concatenate(times), "sensor": np.concatenate(sensors),
+                "position": np.concatenate(positions), "covariance": np.concatenate(covariances)}
+
     def drain_identity_events(self):
         """The identity events found so far (docs/formats.md "identity events") as a pyarrow
         Table, and forget them; ``None`` when there are none."""

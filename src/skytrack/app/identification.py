@@ -1,0 +1,337 @@
+"""ADS-B identification inside a tracking run: radar tracks labelled with the address and callsign
+of the aircraft ADS-B reports for them (issue 9; spec 001 R13 applied to the tracker's output).
+
+:class:`AdsbLabeler` sits beside :func:`skytrack.app.run.run_tracking`.  The tracker records
+every plot a confirmed track takes (:meth:`skytrack.tracker.Tracker.record_assignments`: the
+plot's common-frame position and covariance); those are the radar tracks' reports (system 1),
+the ADS-B reports grouped by ``icao24`` are the other system's (system 2).  At every output
+instant of the tracks table the :class:`~skytrack.identify.identifier.TrackIdentifier` has taken
+every report up to that instant and the global assignment (R13 step 4) decides; a track is
+labelled when
+
+* its pair with the ADS-B track is assigned (Λ ≤ h = χ²⁻¹_dof(``p_correct``), dof ≥ n),
+* the pair has taken at least ``min_updates`` reports since it was made (a fresh pair's Λ₀ is
+  one snapshot of the two track states), and
+* with ``unique`` (default), neither track has another pair that also passes the test: a careful
+  operator does not label a track that two aircraft could both explain.
+
+ADS-B decides only through this test; a Mode S address the track's own plots carry (source
+``mode_s``) stays, and an ADS-B label that contradicts it is counted as a conflict, not written.
+``identity_p`` of an ADS-B label is R6's density-mode posterior with the object density β of the
+live ADS-B tracks over the covered area and a disc of ground speeds (approximate with process
+noise, as R6 says).  Every label change is an identity event (source ``adsb``).  With
+``fuse`` the rows of labelled tracks carry the pair's joint estimate (R14 ``fusion="joint"``).
+
+Identification model: CV with ``q`` (m²/s³); pairs are re-made by ``fuse`` every ``horizon_s``
+(:class:`~skytrack.identify.identifier.IdentifierConfig`): with process noise, Λ of a true pair
+drifts upwards over long tracks, so evidence older than the horizon is summarised by the track
+states instead of being accumulated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+
+from skytrack.identify.identifier import IdentifierConfig, TrackIdentifier
+from skytrack.identify.threshold import Threshold
+
+#: sigma (m, per axis) of ADS-B reports that give neither sigma_m nor a NACp
+DEFAULT_ADSB_SIGMA_M = 40.0
+
+
+@dataclass(frozen=True)
+class AdsbIdentificationConfig:
+    """Settings of the ADS-B labelling of a tracking run."""
+
+    q: float = 300.0
+    """process-noise PSD (m²/s³) of the CV identification model: large enough for the radar track's
+    filter to follow a 3 g turn between 4-s scans, which is what keeps true pairs through manoeuvres"""
+    gate_m: float = 10_000.0
+    horizon_s: float | None = 30.0
+    p_correct: float = 0.99
+    """a new label needs Λ ≤ χ²⁻¹_dof(p_correct)"""
+    p_keep: float = 0.9999
+    """a label is kept while Λ ≤ χ²⁻¹_dof(p_keep) (hysteresis: Λ of a true pair fluctuates)"""
+    min_updates: int = 8
+    unique: bool = True
+    stale_s: float = 30.0
+    """an ADS-B address silent this long ends its track (its pairs die)"""
+    fuse: bool = False
+    ground_speed_mps: float = 300.0
+    """radius of the disc of ground velocities in the object density β of ``identity_p``"""
+    batch_s: float = 1.0
+    report_gate: float | None = 0.9999
+    """a plot (or ADS-B report) this improbable under its own track's filter is left out"""
+    recreate_after_s: float = 20.0
+
+    def __post_init__(self):
+        if not 0.0 < self.p_correct <= self.p_keep < 1.0:
+            raise ValueError(f"need 0 < p_correct <= p_keep < 1, got {self.p_correct} and {self.p_keep}")
+        if self.min_updates < 0:
+            raise ValueError(f"min_updates must be >= 0, got {self.min_updates}")
+        if not self.stale_s > 0:
+            raise ValueError(f"stale_s must be > 0, got {self.stale_s}")
+
+    def identifier_config(self) -> IdentifierConfig:
+        return IdentifierConfig(q=self.q, gate_m=self.gate_m, horizon_s=self.horizon_s, batch_s=self.batch_s,
+                                threshold=Threshold(p_correct=self.p_keep), report_gate=self.report_gate,
+                                recreate_after_s=self.recreate_after_s)
+
+
+@dataclass
+class LabelStats:
+    """What the labelling did, for the run summary."""
+
+    adsb_reports: int = 0
+    adsb_addresses: int = 0
+    radar_reports: int = 0
+    late_radar_reports: int = 0
+    """radar plots older than reports already identified (processed by the tracker late); skipped"""
+    labelled_rows: int = 0
+    labelled_tracks: set = field(default_factory=set)
+    mode_s_conflicts: int = 0
+    label_changes: int = 0
+
+    def to_dict(self) -> dict:
+        return {"adsb_reports": self.adsb_reports, "adsb_addresses": self.adsb_addresses,
+                "radar_reports": self.radar_reports, "late_radar_reports": self.late_radar_reports,
+                "labelled_rows": self.labelled_rows, "labelled_tracks": len(self.labelled_tracks),
+                "mode_s_conflicts": self.mode_s_conflicts, "label_changes": self.label_changes}
+
+
+class AdsbLabeler:
+    """Labels tracks-table chunks with ADS-B identities as the tracker produces them."""
+
+    def __init__(self, adsb: pd.DataFrame, covered_area_m2: float, config: AdsbIdentificationConfig | None = None):
+        self.config = config = config if config is not None else AdsbIdentificationConfig()
+        self.identifier = TrackIdentifier(config.identifier_config())
+        adsb = adsb.sort_values("time", kind="stable")
+        self.adsb_time = adsb["time"].to_numpy(float)
+        self.adsb_id = adsb["icao24"].astype(str).to_numpy()
+        self.adsb_z = adsb[["x", "y"]].to_numpy(float)
+        sigma = adsb["sigma_m"].to_numpy(float) if "sigma_m" in adsb else np.full(len(adsb), np.nan)
+        sigma = np.where(np.isfinite(sigma), sigma, DEFAULT_ADSB_SIGMA_M)
+        self.adsb_var = sigma ** 2
+        callsign = adsb["callsign"] if "callsign" in adsb else pd.Series([None] * len(adsb))
+        self.adsb_callsign = callsign.where(callsign.notna(), None).to_numpy(object)
+        self.adsb_next = 0
+        self.addresses = np.unique(self.adsb_id)
+        self.callsign_of: dict[str, str | None] = {}
+        self.radar_gen: dict = {}
+        self.adsb_gen: dict = {}
+        self.radar_heard: dict = {}
+        self.adsb_heard: dict = {}
+        self.ended: dict[int, set] = {1: set(), 2: set()}
+        self.covered_area_m2 = covered_area_m2
+        self.pending = None
+        self.labels: dict[int, tuple] = {}  # track id -> (icao24, callsign) last written
+        self.stats = LabelStats(adsb_reports=len(adsb), adsb_addresses=len(self.addresses))
+
+    # ------------------------------------------------------------------ reports
+    def add_radar(self, assignments: dict[str, np.ndarray] | None) -> None:
+        """Plots confirmed tracks took (:meth:`skytrack.tracker.Tracker.drain_assignments`)."""
+        if assignments is None or len(assignments["time"]) == 0:
+            return
+        part = {"track_id": assignments["track_id"], "time": assignments["time"],
+                "z": assignments["position"][:, :2], "V": assignments["covariance"][:, :2, :2]}
+        if self.pending is None:
+            self.pending = part
+        else:
+            self.pending = {k: np.concatenate([self.pending[k], part[k]]) for k in part}
+        self.stats.radar_reports += len(part["time"])
+
+    def _advance(self, t: float) -> None:
+        """Feed the identifier every report up to ``t``."""
+        ident = self.identifier
+        stop = int(np.searchsorted(self.adsb_time, t, side="right"))
+        a = slice(self.adsb_next, stop)
+        self.adsb_next = stop
+        radar_id = radar_t = radar_z = radar_V = None
+        if self.pending is not None:
+            take = self.pending["time"] <= t
+            late = take & (self.pending["time"] < ident.time)
+            if late.any():
+                self.stats.late_radar_reports += int(late.sum())
+                take &= ~late
+            radar_t, radar_id = self.pending["time"][take], self.pending["track_id"][take]
+            radar_z, radar_V = self.pending["z"][take], self.pending["V"][take]
+            keep = ~(self.pending["time"] <= t)
+            self.pending = {k: v[keep] for k, v in self.pending.items()}
+        adsb_ids = self.adsb_id[a]
+        for address, callsign in zip(adsb_ids, self.adsb_callsign[a]):
+            if callsign is not None:
+                self.callsign_of[address] = callsign
+        n_adsb = len(adsb_ids)
+        n_radar = 0 if radar_t is None else len(radar_t)
+        if n_adsb + n_radar == 0:
+            return
+        side = np.r_[np.full(n_adsb, 2, np.int8), np.ones(n_radar, np.int8)]
+        ids = np.r_[adsb_ids.astype(object), (radar_id if n_radar else np.zeros(0)).astype(object)]
+        times = np.r_[self.adsb_time[a], radar_t if n_radar else np.zeros(0)]
+        z = np.concatenate([self.adsb_z[a]] + ([radar_z] if n_radar else []))
+        V = np.concatenate([self.adsb_var[a, None, None] * np.eye(2)] + ([radar_V] if n_radar else []))
+        ident.process(side, self._keys(side, ids, times), times, z, V)
+
+    def _keys(self, side: np.ndarray, ids: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Identifier track keys: ``r:ID:GEN`` / ``a:ADDRESS:GEN``; a track heard again after it was
+        ended (stale) starts a new generation, so the identifier sees a new track."""
+        keys = np.empty(len(ids), dtype=object)
+        for s, prefix, gen, heard in ((1, "r", self.radar_gen, self.radar_heard),
+                                      (2, "a", self.adsb_gen, self.adsb_heard)):
+            mine = side == s
+            if not mine.any():
+                continue
+            frame = pd.DataFrame({"id": ids[mine], "time": times[mine]})
+            last = frame.groupby("id", sort=False)["time"].max()
+            for track_id in last.index[[i in self.ended[s] for i in last.index]]:
+                gen[track_id] = gen.get(track_id, 0) + 1  # one step per ended track, not per report
+                self.ended[s].discard(track_id)
+            heard.update(last.to_dict())
+            generation = frame["id"].map(lambda i: gen.get(i, 0))
+            keys[mine] = (prefix + ":" + frame["id"].astype(str) + ":" + generation.astype(str)).to_numpy(object)
+        return keys
+
+    def _end_stale(self, t: float) -> None:
+        """Tracks silent for ``stale_s`` end (their pairs die); a later report starts a new generation."""
+        for s, prefix, gen, heard in ((1, "r", self.radar_gen, self.radar_heard),
+                                      (2, "a", self.adsb_gen, self.adsb_heard)):
+            stale = [i for i, last in heard.items() if last < t - self.config.stale_s and i not in self.ended[s]]
+            if stale:
+                self.identifier.end_tracks(s, [f"{prefix}:{i}:{gen.get(i, 0)}" for i in stale])
+                self.ended[s].update(stale)
+                for i in stale:
+                    del heard[i]
+
+    # ------------------------------------------------------------------ decisions
+    def _decide(self, t: float) -> dict[int, tuple[str, float, int]]:
+        """Radar track id -> (icao24, identity_p, pair row) of the tracks labelled at ``t``."""
+        ident = self.identifier
+        result = ident.assign()
+        if len(result.pair) == 0:
+            return {}
+        pairs = ident.pairs
+        ok = pairs.updates[result.pair] >= self.config.min_updates
+        if self.config.unique:
+            table, live = ident.pair_table()
+            passing = table.allowed
+            count_first = np.bincount(table.first[passing], minlength=len(ident.track_ids))
+            count_second = np.bincount(table.second[passing], minlength=len(ident.track_ids))
+            ok &= (count_first[pairs.first[result.pair]] == 1) & (count_second[pairs.second[result.pair]] == 1)
+        first = [ident.track_ids[i] for i in pairs.first[result.pair]]
+        second = [ident.track_ids[j] for j in pairs.second[result.pair]]
+        holding = np.array([self.labels.get(int(f.split(":")[1]), (None,))[0] == a.split(":")[1]
+                            for f, a in zip(first, second)], dtype=bool)
+        giving = Threshold(p_correct=self.config.p_correct).value(pairs.dof[result.pair])
+        ok &= holding | (pairs.statistic[result.pair] <= giving)
+        rows = result.pair[ok]
+        if len(rows) == 0:
+            return {}
+        live_adsb = max(1, len(self.adsb_heard))
+        beta = live_adsb / (self.covered_area_m2 * math.pi * self.config.ground_speed_mps ** 2)
+        from skytrack.identify.sequential import logistic
+
+        log_bf = (-0.5 * pairs.statistic[rows]
+                  - 0.5 * np.linalg.slogdet(2 * np.pi * ident._covariance_sum(rows, t))[1] - math.log(beta))
+        p_same = logistic(log_bf)
+        first = [ident.track_ids[i] for i in pairs.first[rows]]
+        second = [ident.track_ids[j] for j in pairs.second[rows]]
+        return {int(f.split(":")[1]): (s.split(":")[1], float(p), int(r))
+                for f, s, p, r in zip(first, second, p_same, rows)}
+
+    def label(self, table: pa.Table | None, assignments) -> tuple[pa.Table | None, pa.Table | None]:
+        """Label a chunk of track rows (all its output instants); returns it and its identity events."""
+        self.add_radar(assignments)
+        if table is None or table.num_rows == 0:
+            return table, None
+        frame = table.select(["time", "track_id", "icao24", "callsign", "identity_source", "identity_p"]).to_pandas()
+        icao24, callsign, source = (frame[name].astype(object).where(frame[name].notna(), None).to_numpy(object).copy()
+                                    for name in ("icao24", "callsign", "identity_source"))
+        probability = frame["identity_p"].to_numpy(float).copy()
+        fused = {} if self.config.fuse else None
+        events = []
+        times = frame["time"].to_numpy(float)
+        for t in np.unique(times):
+            at = np.flatnonzero(times == t)
+            self._advance(float(t))
+            track_ids = frame["track_id"].to_numpy()[at]
+            self._end_stale(float(t))
+            decided = self._decide(float(t))
+            for row, track in zip(at, track_ids.tolist()):
+                label = decided.get(track)
+                if source[row] == "mode_s":
+                    if label is not None and label[0] == icao24[row]:
+                        callsign[row] = self.callsign_of.get(label[0])
+                    elif label is not None:
+                        self.stats.mode_s_conflicts += 1
+                    new = (icao24[row], callsign[row])
+                elif label is not None:
+                    icao24[row], callsign[row] = label[0], self.callsign_of.get(label[0])
+                    source[row], probability[row] = "adsb", label[1]
+                    new = (icao24[row], callsign[row])
+                    if fused is not None:
+                        fused[row] = label[2]
+                else:
+                    new = (None, None) if source[row] in (None, "adsb") else (icao24[row], callsign[row])
+                if label is not None:
+                    self.stats.labelled_rows += 1
+                    self.stats.labelled_tracks.add(track)
+                old = self.labels.get(track, (None, None))
+                if source[row] != "mode_s" and new != old:
+                    for name, before, after in (("icao24", old[0], new[0]), ("callsign", old[1], new[1])):
+                        if before != after:
+                            events.append((float(t), track, name, before, after, "adsb",
+                                           probability[row] if label is not None else None))
+                    self.stats.label_changes += 1
+                self.labels[track] = new
+        table = _replace(table, {"icao24": pa.array(icao24, pa.string()), "callsign": pa.array(callsign, pa.string()),
+                                 "identity_source": pa.array(source, pa.string()),
+                                 "identity_p": pa.array(probability, pa.float64())})
+        if fused:
+            table = self._fuse(table, fused)
+        return table, _events_table(events)
+
+    def _fuse(self, table: pa.Table, fused: dict[int, int]) -> pa.Table:
+        """R14: rows of labelled tracks carry the pair's joint estimate at the row's time."""
+        rows = np.fromiter(fused.keys(), np.int64)
+        pairs = np.fromiter(fused.values(), np.int64)
+        times = table.column("time").to_numpy()[rows]
+        x, P = self.identifier.fused(pairs, "joint", t=None)
+        # bring each joint estimate to its row's time (the pair's last report is at or before it)
+        x, P = self.identifier.pairs.joint.estimate_at(pairs, times)
+        columns = {name: table.column(name).to_numpy().astype(float).copy()
+                   for name in ("x", "y", "vx", "vy", "var_x", "var_y", "var_vx", "var_vy")}
+        for k, name in enumerate(("x", "y", "vx", "vy")):
+            columns[name][rows] = x[:, k]
+            columns["var_" + name][rows] = P[:, k, k]
+        return _replace(table, {name: pa.array(v, pa.float64()) for name, v in columns.items()})
+
+
+def _replace(table: pa.Table, columns: dict[str, pa.Array]) -> pa.Table:
+    for name, array in columns.items():
+        index = table.schema.get_field_index(name)
+        table = table.set_column(index, pa.field(name, array.type), array)
+    return table
+
+
+def _events_table(events: list[tuple]) -> pa.Table | None:
+    if not events:
+        return None
+    from skytrack.io.identity_events import EVENT_ARROW_SCHEMA
+
+    columns = list(zip(*events))
+    return pa.table([pa.array(c, type=f.type) for c, f in zip(columns, EVENT_ARROW_SCHEMA)], schema=EVENT_ARROW_SCHEMA)
+
+
+def covered_area(sensor_set, adsb: pd.DataFrame) -> float:
+    """The area (m²) the object density of ``identity_p`` spreads over: the radars' coverage discs,
+    or, without ranges, the ADS-B reports' bounding box."""
+    radii = [s.max_range_m for s in sensor_set.sensors if s.is_radar and s.max_range_m]
+    if radii:
+        return float(sum(math.pi * r ** 2 for r in radii))
+    span = adsb[["x", "y"]].max() - adsb[["x", "y"]].min()
+    return float(max(span["x"], 1e4) * max(span["y"], 1e4))
