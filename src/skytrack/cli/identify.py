@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import typer
 
+from skytrack.cli.identify_pair import register_pair_command
 from skytrack.cli.identify_potential import register_potential_commands
 
 identify_app = typer.Typer(
@@ -21,3 +22,4 @@ identify_app = typer.Typer(
     no_args_is_help=True,
 )
 register_potential_commands(identify_app)  # R11: potential, threshold
+register_pair_command(identify_app)  # R12: pair
