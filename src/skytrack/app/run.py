@@ -60,6 +60,9 @@ class RunSummary:
     """why no identity-events file was written (``None`` when one was)"""
     identification: dict | None = None
     """with ADS-B: what the labelling did (:class:`skytrack.app.identification.LabelStats`)"""
+    reports_file: str | None = None
+    """with ``write_reports``: the plots confirmed tracks took (``NAME.reports.parquet``)"""
+    report_rows: int = 0
 
     @property
     def plots_per_s(self) -> float:
@@ -74,7 +77,7 @@ class RunSummary:
             "no_tracks_reason": self.no_tracks_reason, "identity_events_file": self.identity_events_file,
             "identity_event_rows": self.identity_event_rows,
             "no_identity_events_reason": self.no_identity_events_reason,
-            "identification": self.identification,
+            "identification": self.identification, "reports_file": self.reports_file, "report_rows": self.report_rows,
         }
 
 
@@ -91,6 +94,7 @@ def run_tracking(
     range_rate_positive_closing: bool = False,
     adsb_path: str | Path | None = None,
     identification=None,
+    write_reports: bool = False,
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
@@ -104,7 +108,9 @@ def run_tracking(
     negated on reading (skytrack's convention is ``dD/dt``).  With ``adsb_path`` the tracks are
     labelled with the ADS-B identities the spec 001 test decides for them
     (:mod:`skytrack.app.identification`, settings ``identification``), and the label changes are
-    identity events.
+    identity events.  With ``write_reports`` the plots every confirmed track took are written
+    beside the tracks (:func:`skytrack.io.track_reports.track_reports_path`), the input of
+    ``skytrack identify tracks`` between two radars.
     """
     from skytrack.io import ReadReport, identity_events_path, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.identity_events import IdentityEventWriter
@@ -127,6 +133,13 @@ def run_tracking(
     labeler = None
     if adsb_path is not None:
         labeler = _adsb_labeler(adsb_path, sensor_set, identification, config)
+    reports = None
+    if write_reports:
+        from skytrack.io.track_reports import TrackReportWriter, track_reports_path
+
+        refuse_overwriting(track_reports_path(out), plots=plots_path, sensors=sensors_path)
+        reports = TrackReportWriter(track_reports_path(out), [sensor.name for sensor in sensor_set.sensors])
+    if labeler is not None or reports is not None:
         tracker.record_assignments()
     started = time.perf_counter()
     plots_read = 0
@@ -139,11 +152,13 @@ def run_tracking(
                                        range_rate_positive_closing=range_rate_positive_closing):
             tracker.feed(chunk, source=str(plots_path))
             first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
-            _write_chunk(tracker, labeler, writer, events)
+            _write_chunk(tracker, labeler, writer, events, reports)
             plots_read += len(chunk)
             report_progress("track", plots_read, total)
         tracker.finish()
-        _write_chunk(tracker, labeler, writer, events)
+        _write_chunk(tracker, labeler, writer, events, reports)
+        if reports is not None:
+            reports.close()
         identity_seen = tracker.identity_seen or labeler is not None
         events.close(create=identity_seen)
         if not identity_seen:
@@ -164,6 +179,8 @@ def run_tracking(
         summary.no_tracks_reason = no_tracks_reason(summary, config)
     if labeler is not None:
         summary.identification = labeler.stats.to_dict()
+    if reports is not None:
+        summary.reports_file, summary.report_rows = str(reports.path), reports.rows
     if identity_seen:
         summary.identity_events_file, summary.identity_event_rows = str(events_path), events.rows
     else:
@@ -184,12 +201,16 @@ def _adsb_labeler(adsb_path, sensor_set, identification, config):
     return AdsbLabeler(adsb, covered_area(sensor_set, adsb), identification)
 
 
-def _write_chunk(tracker, labeler, writer, events) -> None:
-    """The track rows and identity events produced so far, labelled with ADS-B when it is given."""
+def _write_chunk(tracker, labeler, writer, events, reports=None) -> None:
+    """The track rows and identity events produced so far, labelled with ADS-B when it is given
+    (and the plots the tracks took, when they are written)."""
     table = tracker.drain_arrow()
     events.write(tracker.drain_identity_events())
+    taken = tracker.drain_assignments()
+    if reports is not None:
+        reports.write(taken)
     if labeler is not None:
-        table, adsb_events = labeler.label(table, tracker.drain_assignments())
+        table, adsb_events = labeler.label(table, taken)
         events.write(adsb_events)
     writer.write(table, checked=True)
 

@@ -231,6 +231,9 @@ def track(
     range_rate_positive_closing: Annotated[bool, typer.Option("--range-rate-positive-closing", help="The plots' range_rate_mps is positive for closing targets; negate it into skytrack's convention (dD/dt, positive opening).")] = False,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
+    adsb: Annotated[Optional[Path], typer.Option("--adsb", help="ADS-B reports (FORMATS.md adsb, OpenSky or traffic state vectors): label tracks with the icao24 and callsign that spec 001's sequential test identifies for them.")] = None,
+    adsb_fuse: Annotated[bool, typer.Option("--adsb-fuse", help="With --adsb: rows of identified tracks carry the radar/ADS-B fused state (the pair's joint filter, spec 001 R14).")] = False,
+    reports: Annotated[bool, typer.Option("--reports", help="Also write NAME.reports.parquet: the plots every confirmed track took (position and covariance in the common frame), for `skytrack identify tracks` between two radars.")] = False,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
     from skytrack.app.run import run_tracking
@@ -266,9 +269,17 @@ def track(
         config = config.replace(identity_error_p=identity_error_p)
     if chunk_rows < 1:
         _fail(f"--chunk-rows must be at least 1, got {chunk_rows}")
+    if adsb_fuse and adsb is None:
+        _fail("--adsb-fuse needs --adsb")
+    identification = None
+    if adsb is not None:
+        from skytrack.app.identification import AdsbIdentificationConfig
+
+        identification = AdsbIdentificationConfig(fuse=adsb_fuse)
     with _progress() as progress:
         summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress,
-                               units_confirmed=units_confirmed, range_rate_positive_closing=range_rate_positive_closing)
+                               units_confirmed=units_confirmed, range_rate_positive_closing=range_rate_positive_closing,
+                               adsb_path=adsb, identification=identification, write_reports=reports)
     _print_tracking_summary(summary)
 
 
@@ -301,6 +312,15 @@ def _print_tracking_summary(summary) -> None:
         table.add_row("identity events", f"{summary.identity_event_rows} -> {summary.identity_events_file}")
     elif summary.no_identity_events_reason:
         table.add_row("identity events", f"none: {summary.no_identity_events_reason}")
+    if summary.identification is not None:
+        ident = summary.identification
+        table.add_row("ADS-B", f"{ident['adsb_reports']} reports from {ident['adsb_addresses']} addresses")
+        table.add_row("tracks identified", f"{ident['labelled_tracks']} ({ident['labelled_rows']} rows labelled, "
+                                           f"{ident['label_changes']} label changes)")
+        if ident["mode_s_conflicts"]:
+            table.add_row("Mode S conflicts", f"{ident['mode_s_conflicts']} rows where ADS-B named another address")
+    if summary.reports_file is not None:
+        table.add_row("track reports", f"{summary.report_rows} -> {summary.reports_file}")
     table.add_row("time", f"{summary.elapsed_s:.2f} s ({summary.plots_per_s:,.0f} plots/s, reading and writing included)")
     console.print(table)
     if summary.no_tracks_reason:
