@@ -1,7 +1,7 @@
 """ADS-B identification inside a tracking run: radar tracks labelled with the address and callsign
 of the aircraft ADS-B reports for them (issue 9; spec 001 R13 applied to the tracker's output).
 
-:class:`AdsbLabeler` sits beside :func:`skytrack.app.run.run_tracking`.  The tracker records
+:class:`TrackLabeler` sits beside :func:`skytrack.app.run.run_tracking`.  The tracker records
 every plot a confirmed track takes (:meth:`skytrack.tracker.Tracker.record_assignments`: the
 plot's common-frame position and covariance); those are the radar tracks' reports (system 1),
 the ADS-B reports grouped by ``icao24`` are the other system's (system 2).  At every output
@@ -104,33 +104,82 @@ class LabelStats:
                 "mode_s_conflicts": self.mode_s_conflicts, "label_changes": self.label_changes}
 
 
-class AdsbLabeler:
-    """Labels tracks-table chunks with ADS-B identities as the tracker produces them."""
+@dataclass(frozen=True)
+class OtherSystem:
+    """The second observation system's reports (spec 001's ξ): one row per report."""
 
-    def __init__(self, adsb: pd.DataFrame, covered_area_m2: float, config: AdsbIdentificationConfig | None = None):
+    source: str
+    """``adsb``, ``radar`` or ``iff``: the ``identity_source`` of the labels it gives"""
+    time: np.ndarray
+    key: np.ndarray
+    """track of the report: the ADS-B address, or the other radar's track id (as text)"""
+    z: np.ndarray
+    """horizontal positions ``[N, 2]`` in the common frame"""
+    V: np.ndarray
+    """their covariances ``[N, 2, 2]``"""
+    icao24: np.ndarray
+    """address the report names (null when unknown)"""
+    callsign: np.ndarray
+
+    @property
+    def keys(self) -> int:
+        return len(np.unique(self.key))
+
+
+def _text(values) -> np.ndarray:
+    series = pd.Series(values, dtype=object)
+    return series.where(series.notna(), None).to_numpy(object)
+
+
+def adsb_system(adsb: pd.DataFrame) -> OtherSystem:
+    """ADS-B reports (:func:`skytrack.io.read_adsb`) as the other system, tracked per address."""
+    adsb = adsb.sort_values("time", kind="stable")
+    sigma = adsb["sigma_m"].to_numpy(float) if "sigma_m" in adsb else np.full(len(adsb), np.nan)
+    sigma = np.where(np.isfinite(sigma), sigma, DEFAULT_ADSB_SIGMA_M)
+    address = adsb["icao24"].astype(str).to_numpy(object)
+    callsign = adsb["callsign"] if "callsign" in adsb else [None] * len(adsb)
+    return OtherSystem("adsb", adsb["time"].to_numpy(float), address, adsb[["x", "y"]].to_numpy(float),
+                       sigma[:, None, None] ** 2 * np.eye(2), address, _text(callsign))
+
+
+def track_system(reports: pd.DataFrame, tracks: pd.DataFrame | None, source: str = "radar") -> OtherSystem:
+    """Another radar's (or an interrogator's) track reports (:func:`skytrack.io.read_track_reports`)
+    as the other system; each report names the identity its track carried at that time."""
+    reports = reports.sort_values("time", kind="stable").reset_index(drop=True)
+    V = np.empty((len(reports), 2, 2))
+    V[:, 0, 0], V[:, 1, 1] = reports["var_x"], reports["var_y"]
+    V[:, 0, 1] = V[:, 1, 0] = reports["cov_xy"]
+    icao24 = callsign = np.full(len(reports), None, dtype=object)
+    if tracks is not None and len(tracks) and len(reports):
+        labels = tracks[["time", "track_id", "icao24", "callsign"]].sort_values("time", kind="stable")
+        joined = pd.merge_asof(reports[["time", "track_id"]].reset_index(), labels, on="time", by="track_id",
+                               direction="backward").sort_values("index")
+        icao24, callsign = _text(joined["icao24"]), _text(joined["callsign"])
+    key = reports["track_id"].astype(np.int64).astype(str).to_numpy(object)
+    return OtherSystem(source, reports["time"].to_numpy(float), key, reports[["x", "y"]].to_numpy(float), V,
+                       icao24, callsign)
+
+
+class TrackLabeler:
+    """Labels tracks-table chunks with the identities another system's tracks carry, as the tracker
+    produces them (ADS-B: :func:`adsb_system`; another radar or an interrogator: :func:`track_system`)."""
+
+    def __init__(self, other: OtherSystem, covered_area_m2: float, config: AdsbIdentificationConfig | None = None):
         self.config = config = config if config is not None else AdsbIdentificationConfig()
         self.identifier = TrackIdentifier(config.identifier_config())
-        adsb = adsb.sort_values("time", kind="stable")
-        self.adsb_time = adsb["time"].to_numpy(float)
-        self.adsb_id = adsb["icao24"].astype(str).to_numpy()
-        self.adsb_z = adsb[["x", "y"]].to_numpy(float)
-        sigma = adsb["sigma_m"].to_numpy(float) if "sigma_m" in adsb else np.full(len(adsb), np.nan)
-        sigma = np.where(np.isfinite(sigma), sigma, DEFAULT_ADSB_SIGMA_M)
-        self.adsb_var = sigma ** 2
-        callsign = adsb["callsign"] if "callsign" in adsb else pd.Series([None] * len(adsb))
-        self.adsb_callsign = callsign.where(callsign.notna(), None).to_numpy(object)
-        self.adsb_next = 0
-        self.addresses = np.unique(self.adsb_id)
-        self.callsign_of: dict[str, str | None] = {}
+        self.other = other
+        self.other_next = 0
+        self.label_of: dict[str, tuple] = {}  # other track key -> (icao24, callsign) it last named
         self.radar_gen: dict = {}
-        self.adsb_gen: dict = {}
+        self.other_gen: dict = {}
         self.radar_heard: dict = {}
-        self.adsb_heard: dict = {}
+        self.other_heard: dict = {}
         self.ended: dict[int, set] = {1: set(), 2: set()}
         self.covered_area_m2 = covered_area_m2
         self.pending = None
         self.labels: dict[int, tuple] = {}  # track id -> (icao24, callsign) last written
-        self.stats = LabelStats(adsb_reports=len(adsb), adsb_addresses=len(self.addresses))
+        self.pairs_log: list[tuple] = []
+        self.stats = LabelStats(adsb_reports=len(other.time), adsb_addresses=other.keys)
 
     # ------------------------------------------------------------------ reports
     def add_radar(self, assignments: dict[str, np.ndarray] | None) -> None:
@@ -148,9 +197,10 @@ class AdsbLabeler:
     def _advance(self, t: float) -> None:
         """Feed the identifier every report up to ``t``."""
         ident = self.identifier
-        stop = int(np.searchsorted(self.adsb_time, t, side="right"))
-        a = slice(self.adsb_next, stop)
-        self.adsb_next = stop
+        other = self.other
+        stop = int(np.searchsorted(other.time, t, side="right"))
+        a = slice(self.other_next, stop)
+        self.other_next = stop
         radar_id = radar_t = radar_z = radar_V = None
         if self.pending is not None:
             take = self.pending["time"] <= t
@@ -162,19 +212,19 @@ class AdsbLabeler:
             radar_z, radar_V = self.pending["z"][take], self.pending["V"][take]
             keep = ~(self.pending["time"] <= t)
             self.pending = {k: v[keep] for k, v in self.pending.items()}
-        adsb_ids = self.adsb_id[a]
-        for address, callsign in zip(adsb_ids, self.adsb_callsign[a]):
-            if callsign is not None:
-                self.callsign_of[address] = callsign
+        adsb_ids = other.key[a]
+        for key, address, callsign in zip(adsb_ids, other.icao24[a], other.callsign[a]):
+            if address is not None or callsign is not None:
+                self.label_of[key] = (address, callsign)
         n_adsb = len(adsb_ids)
         n_radar = 0 if radar_t is None else len(radar_t)
         if n_adsb + n_radar == 0:
             return
         side = np.r_[np.full(n_adsb, 2, np.int8), np.ones(n_radar, np.int8)]
         ids = np.r_[adsb_ids.astype(object), (radar_id if n_radar else np.zeros(0)).astype(object)]
-        times = np.r_[self.adsb_time[a], radar_t if n_radar else np.zeros(0)]
-        z = np.concatenate([self.adsb_z[a]] + ([radar_z] if n_radar else []))
-        V = np.concatenate([self.adsb_var[a, None, None] * np.eye(2)] + ([radar_V] if n_radar else []))
+        times = np.r_[other.time[a], radar_t if n_radar else np.zeros(0)]
+        z = np.concatenate([other.z[a]] + ([radar_z] if n_radar else []))
+        V = np.concatenate([other.V[a]] + ([radar_V] if n_radar else []))
         ident.process(side, self._keys(side, ids, times), times, z, V)
 
     def _keys(self, side: np.ndarray, ids: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -182,7 +232,7 @@ class AdsbLabeler:
         ended (stale) starts a new generation, so the identifier sees a new track."""
         keys = np.empty(len(ids), dtype=object)
         for s, prefix, gen, heard in ((1, "r", self.radar_gen, self.radar_heard),
-                                      (2, "a", self.adsb_gen, self.adsb_heard)):
+                                      (2, "a", self.other_gen, self.other_heard)):
             mine = side == s
             if not mine.any():
                 continue
@@ -199,7 +249,7 @@ class AdsbLabeler:
     def _end_stale(self, t: float) -> None:
         """Tracks silent for ``stale_s`` end (their pairs die); a later report starts a new generation."""
         for s, prefix, gen, heard in ((1, "r", self.radar_gen, self.radar_heard),
-                                      (2, "a", self.adsb_gen, self.adsb_heard)):
+                                      (2, "a", self.other_gen, self.other_heard)):
             stale = [i for i, last in heard.items() if last < t - self.config.stale_s and i not in self.ended[s]]
             if stale:
                 self.identifier.end_tracks(s, [f"{prefix}:{i}:{gen.get(i, 0)}" for i in stale])
@@ -231,7 +281,7 @@ class AdsbLabeler:
         rows = result.pair[ok]
         if len(rows) == 0:
             return {}
-        live_adsb = max(1, len(self.adsb_heard))
+        live_adsb = max(1, len(self.other_heard))
         beta = live_adsb / (self.covered_area_m2 * math.pi * self.config.ground_speed_mps ** 2)
         from skytrack.identify.sequential import logistic
 
@@ -261,30 +311,35 @@ class AdsbLabeler:
             track_ids = frame["track_id"].to_numpy()[at]
             self._end_stale(float(t))
             decided = self._decide(float(t))
+            name = self.other.source
             for row, track in zip(at, track_ids.tolist()):
                 label = decided.get(track)
-                if source[row] == "mode_s":
-                    if label is not None and label[0] == icao24[row]:
-                        callsign[row] = self.callsign_of.get(label[0])
-                    elif label is not None:
-                        self.stats.mode_s_conflicts += 1
-                    new = (icao24[row], callsign[row])
-                elif label is not None:
-                    icao24[row], callsign[row] = label[0], self.callsign_of.get(label[0])
-                    source[row], probability[row] = "adsb", label[1]
-                    new = (icao24[row], callsign[row])
+                named = None
+                if label is not None:
+                    named = self.label_of.get(label[0], (label[0] if name == "adsb" else None, None))
+                    self.pairs_log.append((float(t), track, label[0], label[1], label[2]))
                     if fused is not None:
                         fused[row] = label[2]
+                if source[row] == "mode_s":
+                    if named is not None and named[0] == icao24[row]:
+                        callsign[row] = named[1]
+                    elif named is not None and named[0] is not None:
+                        self.stats.mode_s_conflicts += 1
+                    new = (icao24[row], callsign[row])
+                elif named is not None and (named[0] is not None or named[1] is not None):
+                    icao24[row], callsign[row] = named
+                    source[row], probability[row] = name, label[1]
+                    new = named
                 else:
-                    new = (None, None) if source[row] in (None, "adsb") else (icao24[row], callsign[row])
+                    new = (None, None) if source[row] in (None, name) else (icao24[row], callsign[row])
                 if label is not None:
                     self.stats.labelled_rows += 1
                     self.stats.labelled_tracks.add(track)
                 old = self.labels.get(track, (None, None))
                 if source[row] != "mode_s" and new != old:
-                    for name, before, after in (("icao24", old[0], new[0]), ("callsign", old[1], new[1])):
+                    for field_name, before, after in (("icao24", old[0], new[0]), ("callsign", old[1], new[1])):
                         if before != after:
-                            events.append((float(t), track, name, before, after, "adsb",
+                            events.append((float(t), track, field_name, before, after, name,
                                            probability[row] if label is not None else None))
                     self.stats.label_changes += 1
                 self.labels[track] = new
@@ -295,13 +350,16 @@ class AdsbLabeler:
             table = self._fuse(table, fused)
         return table, _events_table(events)
 
+    def pairs_table(self) -> pd.DataFrame:
+        """Every (time, track, other track, P(same), pair) the labelling decided, for ``identify tracks``."""
+        return pd.DataFrame(self.pairs_log, columns=["time", "track_id", "other_track", "identity_p", "pair"])
+
     def _fuse(self, table: pa.Table, fused: dict[int, int]) -> pa.Table:
         """R14: rows of labelled tracks carry the pair's joint estimate at the row's time."""
         rows = np.fromiter(fused.keys(), np.int64)
         pairs = np.fromiter(fused.values(), np.int64)
         times = table.column("time").to_numpy()[rows]
-        x, P = self.identifier.fused(pairs, "joint", t=None)
-        # bring each joint estimate to its row's time (the pair's last report is at or before it)
+        # the joint estimate brought to the row's time (the pair's last report is at or before it)
         x, P = self.identifier.pairs.joint.estimate_at(pairs, times)
         columns = {name: table.column(name).to_numpy().astype(float).copy()
                    for name in ("x", "y", "vx", "vy", "var_x", "var_y", "var_vx", "var_vy")}

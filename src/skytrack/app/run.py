@@ -189,7 +189,7 @@ def run_tracking(
 
 
 def _adsb_labeler(adsb_path, sensor_set, identification, config):
-    from skytrack.app.identification import DEFAULT_ADSB_SIGMA_M, AdsbLabeler, covered_area
+    from skytrack.app.identification import DEFAULT_ADSB_SIGMA_M, TrackLabeler, adsb_system, covered_area
     from skytrack.io import read_adsb
 
     if config.output.full_covariance and identification is not None and identification.fuse:
@@ -198,7 +198,7 @@ def _adsb_labeler(adsb_path, sensor_set, identification, config):
     adsb = read_adsb(adsb_path, sensors=sensor_set, default_sigma_m=DEFAULT_ADSB_SIGMA_M)
     if len(adsb) == 0:
         raise ValueError(f"{adsb_path}: no ADS-B report to identify tracks with")
-    return AdsbLabeler(adsb, covered_area(sensor_set, adsb), identification)
+    return TrackLabeler(adsb_system(adsb), covered_area(sensor_set, adsb), identification)
 
 
 def _write_chunk(tracker, labeler, writer, events, reports=None) -> None:
