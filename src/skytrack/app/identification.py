@@ -388,7 +388,7 @@ def _events_table(events: list[tuple]) -> pa.Table | None:
 def covered_area(sensor_set, adsb: pd.DataFrame) -> float:
     """The area (m²) the object density of ``identity_p`` spreads over: the radars' coverage discs,
     or, without ranges, the ADS-B reports' bounding box."""
-    radii = [s.max_range_m for s in sensor_set.sensors if s.is_radar and s.max_range_m]
+    radii = [] if sensor_set is None else [s.max_range_m for s in sensor_set.sensors if s.is_radar and s.max_range_m]
     if radii:
         return float(sum(math.pi * r ** 2 for r in radii))
     span = adsb[["x", "y"]].max() - adsb[["x", "y"]].min()

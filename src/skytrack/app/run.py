@@ -95,6 +95,7 @@ def run_tracking(
     adsb_path: str | Path | None = None,
     identification=None,
     write_reports: bool = False,
+    only_sensors: list[str] | None = None,
 ) -> RunSummary:
     """Track a plots file (.parquet/.csv) and write the confirmed tracks to ``out``.
 
@@ -110,7 +111,8 @@ def run_tracking(
     (:mod:`skytrack.app.identification`, settings ``identification``), and the label changes are
     identity events.  With ``write_reports`` the plots every confirmed track took are written
     beside the tracks (:func:`skytrack.io.track_reports.track_reports_path`), the input of
-    ``skytrack identify tracks`` between two radars.
+    ``skytrack identify tracks`` between two radars.  ``only_sensors`` tracks the plots of those
+    sensors alone (the others' plots are read, checked and counted, not tracked).
     """
     from skytrack.io import ReadReport, identity_events_path, iter_plot_batches, read_sensors, refuse_overwriting
     from skytrack.io.identity_events import IdentityEventWriter
@@ -127,6 +129,9 @@ def run_tracking(
     config = config if config is not None else TrackerConfig()
     report_progress = progress or (lambda stage, completed, total: None)
     sensor_set = read_sensors(sensors_path)
+    read_set, keep_sensor = sensor_set, None
+    if only_sensors:
+        sensor_set, keep_sensor = _sensor_subset(sensor_set, only_sensors)
     report = ReadReport(file=str(plots_path)) if lenient else None
     total = count_rows(plots_path)
     tracker = Tracker(sensor_set, config)
@@ -147,9 +152,16 @@ def run_tracking(
     first_time, last_time = math.inf, -math.inf
     events = IdentityEventWriter(events_path)
     with TrackWriter(out) as writer:
-        for chunk in iter_plot_batches(plots_path, sensor_set, lenient, chunk_rows=chunk_rows, report=report,
+        for chunk in iter_plot_batches(plots_path, read_set, lenient, chunk_rows=chunk_rows, report=report,
                                        units_confirmed=units_confirmed,
                                        range_rate_positive_closing=range_rate_positive_closing):
+            if keep_sensor is not None:
+                plots_read += len(chunk)
+                chunk = chunk.take(keep_sensor[chunk.sensor] >= 0)
+                chunk.sensor = keep_sensor[chunk.sensor]
+                plots_read -= len(chunk)
+                if len(chunk) == 0:
+                    continue
             tracker.feed(chunk, source=str(plots_path))
             first_time, last_time = min(first_time, float(chunk.time.min())), max(last_time, float(chunk.time.max()))
             _write_chunk(tracker, labeler, writer, events, reports)
@@ -186,6 +198,21 @@ def run_tracking(
     else:
         summary.no_identity_events_reason = "no plot carried a Mode 3/A code, a Mode S address or an IFF reply"
     return summary
+
+
+def _sensor_subset(sensor_set, names: list[str]):
+    """The sensor set of ``names`` alone, and the new index of every sensor of the file (-1: not kept)."""
+    import numpy as np
+
+    from skytrack.geo.sensors import SensorSet
+
+    for name in names:
+        sensor_set[name]  # an unknown name is a KeyError naming the known ones
+    kept = [s for s in sensor_set.sensors if s.name in names]
+    index = np.array([names.index(s.name) if s.name in names else -1 for s in sensor_set.sensors], dtype=np.int64)
+    order = sorted(kept, key=lambda s: names.index(s.name))
+    return SensorSet(sensor_set.origin, order, sensor_set.epoch_utc, sensor_set.format_version,
+                     dict(sensor_set.extra)), index
 
 
 def _adsb_labeler(adsb_path, sensor_set, identification, config):

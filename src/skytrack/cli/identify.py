@@ -16,6 +16,7 @@ import typer
 
 from skytrack.cli.identify_pair import register_pair_command
 from skytrack.cli.identify_potential import register_potential_commands
+from skytrack.cli.identify_tracks import register_tracks_command
 
 identify_app = typer.Typer(
     help="Identify state estimates of two observation systems (radar, ADS-B, IFF): spec 001.",
@@ -23,3 +24,4 @@ identify_app = typer.Typer(
 )
 register_potential_commands(identify_app)  # R11: potential, threshold
 register_pair_command(identify_app)  # R12: pair
+register_tracks_command(identify_app)  # R13: tracks

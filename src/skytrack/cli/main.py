@@ -233,6 +233,7 @@ def track(
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
     adsb: Annotated[Optional[Path], typer.Option("--adsb", help="ADS-B reports (FORMATS.md adsb, OpenSky or traffic state vectors): label tracks with the icao24 and callsign that spec 001's sequential test identifies for them.")] = None,
     adsb_fuse: Annotated[bool, typer.Option("--adsb-fuse", help="With --adsb: rows of identified tracks carry the radar/ADS-B fused state (the pair's joint filter, spec 001 R14).")] = False,
+    only_sensor: Annotated[Optional[list[str]], typer.Option("--sensor", help="Track the plots of this sensor only (repeat for several); the other sensors' plots are read and checked, not tracked.")] = None,
     reports: Annotated[bool, typer.Option("--reports", help="Also write NAME.reports.parquet: the plots every confirmed track took (position and covariance in the common frame), for `skytrack identify tracks` between two radars.")] = False,
 ) -> None:
     """Track plots of one or more radars and write confirmed tracks (FORMATS.md)."""
@@ -279,7 +280,8 @@ def track(
     with _progress() as progress:
         summary = run_tracking(plots, sensors, out, config, lenient=lenient, chunk_rows=chunk_rows, progress=progress,
                                units_confirmed=units_confirmed, range_rate_positive_closing=range_rate_positive_closing,
-                               adsb_path=adsb, identification=identification, write_reports=reports)
+                               adsb_path=adsb, identification=identification, write_reports=reports,
+                               only_sensors=only_sensor)
     _print_tracking_summary(summary)
 
 
