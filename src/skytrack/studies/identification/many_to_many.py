@@ -234,6 +234,7 @@ def plot_many_to_many(table: pd.DataFrame):
                     ax.fill_between([side_m * 0.93, side_m * 1.07], low, high, color=colour, alpha=0.25)
         ax.fill_between([], [], [], color="grey", alpha=0.25, label="spec range (three seeds)")
         ax.set_xscale("log")
+        ax.minorticks_off()
         ax.set_xticks(sorted(fuse["side_m"].unique()))
         ax.set_xticklabels([f"{v:g}" for v in sorted(fuse["side_m"].unique())])
         ax.set(xlabel="side L of the square holding 30 objects [m]", ylabel=f"{metric} fraction per ADS-B track",
