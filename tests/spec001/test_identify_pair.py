@@ -6,7 +6,6 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import ADSB_DIFF, ADSB_SAME, RADAR
 from typer.testing import CliRunner
 
 from skytrack.cli.main import app
@@ -18,10 +17,12 @@ TV3B = {"same": [0, 0, 0.628432, 2.975266, 2.486850, 1.138368, 3.499557, 2.14628
 DOF = [0, 0, 2, 4, 4, 4, 4, 4]
 
 
-def _write(tmp_path, case: str, name: str = "reports.csv", shuffle: bool = False) -> str:
-    adsb = ADSB_SAME if case == "same" else ADSB_DIFF
-    rows = [(t, "eta", "R1", x, y, 50.0) for t, x, y in RADAR] + [(t, "xi", "A1", x, y, 20.0) for t, x, y in adsb]
-    frame = pd.DataFrame(rows, columns=["time", "system", "track_id", "x", "y", "sigma_m"])
+def _write(tmp_path, tv3, case: str, name: str = "reports.csv", shuffle: bool = False) -> str:
+    """The TV-3 reports (the ``tv3`` fixture of conftest.py) as an identification reports file."""
+    time, system, z, V = tv3(case)
+    frame = pd.DataFrame({"time": time, "system": np.where(system == 1, "eta", "xi"),
+                          "track_id": np.where(system == 1, "R1", "A1"), "x": z[:, 0], "y": z[:, 1],
+                          "sigma_m": np.sqrt(V[:, 0, 0])})
     if shuffle:
         frame = frame.sample(frac=1.0, random_state=3)
     path = tmp_path / name
@@ -35,9 +36,9 @@ def _run(*args):
 
 
 @pytest.mark.parametrize("case", ["same", "diff"])
-def test_tv3b_lambda_after_every_report(tmp_path, case):
+def test_tv3b_lambda_after_every_report(tmp_path, tv3, case):
     table = tmp_path / "out.csv"
-    result = _run(_write(tmp_path, case), "--csv", table)
+    result = _run(_write(tmp_path, tv3, case), "--csv", table)
     assert result.exit_code == 0, result.output
     out = pd.read_csv(table)
     np.testing.assert_allclose(out["statistic"], TV3B[case], atol=1e-6)
@@ -50,9 +51,9 @@ def test_tv3b_lambda_after_every_report(tmp_path, case):
     np.testing.assert_allclose(printed, TV3B[case], atol=1e-6)
 
 
-def test_tv3a_final_forms_and_parquet_input(tmp_path):
+def test_tv3a_final_forms_and_parquet_input(tmp_path, tv3):
     table = tmp_path / "out.csv"
-    result = _run(_write(tmp_path, "diff", "reports.parquet", shuffle=True), "--csv", table)
+    result = _run(_write(tmp_path, tv3, "diff", "reports.parquet", shuffle=True), "--csv", table)
     assert result.exit_code == 0, result.output
     last = pd.read_csv(table).iloc[-1]
     np.testing.assert_allclose([last.Q_Jeta, last.Q_Jxi, last.Q_eta, last.Q_xi, last.statistic],
@@ -60,9 +61,9 @@ def test_tv3a_final_forms_and_parquet_input(tmp_path):
 
 
 @pytest.mark.parametrize("case,p_same", [("same", 0.9999742), ("diff", 3.781733e-5)])
-def test_tv4_prior_mode_posterior(tmp_path, case, p_same):
+def test_tv4_prior_mode_posterior(tmp_path, tv3, case, p_same):
     table = tmp_path / "out.csv"
-    result = _run(_write(tmp_path, case), "--init", "prior", "--x0", "1000,2000,0,0", "--p0-diag", "1e6,1e6,4e4,4e4",
+    result = _run(_write(tmp_path, tv3, case), "--init", "prior", "--x0", "1000,2000,0,0", "--p0-diag", "1e6,1e6,4e4,4e4",
                   "--t0", "0", "--csv", table)
     assert result.exit_code == 0, result.output
     last = pd.read_csv(table).iloc[-1]
@@ -72,18 +73,18 @@ def test_tv4_prior_mode_posterior(tmp_path, case, p_same):
 
 
 @pytest.mark.parametrize("case,p_same", [("same", 0.9999969397), ("diff", 3.217929e-4)])
-def test_tv4_density_mode_posterior(tmp_path, case, p_same):
+def test_tv4_density_mode_posterior(tmp_path, tv3, case, p_same):
     table = tmp_path / "out.csv"
     beta = 1.0 / (1e4 * 1e4 * 400.0 * 400.0)
-    result = _run(_write(tmp_path, case), "--object-density", repr(beta), "--csv", table)
+    result = _run(_write(tmp_path, tv3, case), "--object-density", repr(beta), "--csv", table)
     assert result.exit_code == 0, result.output
     out = pd.read_csv(table)
     assert out["p_same"].iloc[:3].isna().all()  # no posterior before both filters reach full rank
     assert out["p_same"].iloc[-1] == pytest.approx(p_same, rel=1e-6)
 
 
-def test_threshold_modes(tmp_path):
-    path = _write(tmp_path, "same")
+def test_threshold_modes(tmp_path, tv3):
+    path = _write(tmp_path, tv3, "same")
     table = tmp_path / "out.csv"
     assert _run(path, "--h", "2.5", "--csv", table).exit_code == 0
     out = pd.read_csv(table)
@@ -95,8 +96,8 @@ def test_threshold_modes(tmp_path):
     assert _run(path, "--noncentrality", "3").exit_code == 2
 
 
-def test_several_tracks_need_a_choice(tmp_path):
-    frame = pd.read_csv(_write(tmp_path, "same"))
+def test_several_tracks_need_a_choice(tmp_path, tv3):
+    frame = pd.read_csv(_write(tmp_path, tv3, "same"))
     other = frame[frame["system"] == "xi"].assign(track_id="A2", x=lambda f: f["x"] + 150.0, y=lambda f: f["y"] - 100.0)
     path = tmp_path / "two.csv"
     pd.concat([frame, other]).to_csv(path, index=False)
