@@ -12,8 +12,8 @@ labelled when
 * its pair with the ADS-B track is assigned (Λ ≤ h = χ²⁻¹_dof(``p_correct``), dof ≥ n),
 * the pair has taken at least ``min_updates`` reports since it was made (a fresh pair's Λ₀ is
   one snapshot of the two track states), and
-* with ``unique`` (default), neither track has another pair that also passes the test: a careful
-  operator does not label a track that two aircraft could both explain.
+* with ``unique`` (default), neither track has another pair that also passes the test after as
+  many reports: a careful operator does not label a track that two aircraft could both explain.
 
 ADS-B decides only through this test; a Mode S address the track's own plots carry (source
 ``mode_s``) stays, and an ADS-B label that contradicts it is counted as a conflict, not written.
@@ -268,7 +268,8 @@ class TrackLabeler:
         ok = pairs.updates[result.pair] >= self.config.min_updates
         if self.config.unique:
             table, live = ident.pair_table()
-            passing = table.allowed
+            # a pair younger than min_updates has not yet shown it fits: it cannot make a label ambiguous
+            passing = table.allowed & (pairs.updates[live] >= self.config.min_updates)
             count_first = np.bincount(table.first[passing], minlength=len(ident.track_ids))
             count_second = np.bincount(table.second[passing], minlength=len(ident.track_ids))
             ok &= (count_first[pairs.first[result.pair]] == 1) & (count_second[pairs.second[result.pair]] == 1)
@@ -302,7 +303,7 @@ class TrackLabeler:
         icao24, callsign, source = (frame[name].astype(object).where(frame[name].notna(), None).to_numpy(object).copy()
                                     for name in ("icao24", "callsign", "identity_source"))
         probability = frame["identity_p"].to_numpy(float).copy()
-        fused = {} if self.config.fuse else None
+        fused = _FusedRows(table.num_rows) if self.config.fuse else None
         events = []
         times = frame["time"].to_numpy(float)
         for t in np.unique(times):
@@ -312,6 +313,7 @@ class TrackLabeler:
             self._end_stale(float(t))
             decided = self._decide(float(t))
             name = self.other.source
+            fused_now: dict[int, int] = {}
             for row, track in zip(at, track_ids.tolist()):
                 label = decided.get(track)
                 named = None
@@ -319,7 +321,7 @@ class TrackLabeler:
                     named = self.label_of.get(label[0], (label[0] if name == "adsb" else None, None))
                     self.pairs_log.append((float(t), track, label[0], label[1], label[2]))
                     if fused is not None:
-                        fused[row] = label[2]
+                        fused_now[row] = label[2]
                 if source[row] == "mode_s":
                     if named is not None and named[0] == icao24[row]:
                         callsign[row] = named[1]
@@ -343,30 +345,44 @@ class TrackLabeler:
                                            probability[row] if label is not None else None))
                     self.stats.label_changes += 1
                 self.labels[track] = new
+            if fused_now:
+                # the pairs' joint estimates now, before later reports move them on (R14)
+                rows = np.fromiter(fused_now.keys(), np.int64)
+                x, P = self.identifier.pairs.joint.estimate_at(np.fromiter(fused_now.values(), np.int64),
+                                                               np.full(len(rows), float(t)))
+                fused[rows] = (x, P)
         table = _replace(table, {"icao24": pa.array(icao24, pa.string()), "callsign": pa.array(callsign, pa.string()),
                                  "identity_source": pa.array(source, pa.string()),
                                  "identity_p": pa.array(probability, pa.float64())})
-        if fused:
-            table = self._fuse(table, fused)
+        if fused is not None and fused.rows.any():
+            table = fused.apply(table)
         return table, _events_table(events)
 
     def pairs_table(self) -> pd.DataFrame:
         """Every (time, track, other track, P(same), pair) the labelling decided, for ``identify tracks``."""
         return pd.DataFrame(self.pairs_log, columns=["time", "track_id", "other_track", "identity_p", "pair"])
 
-    def _fuse(self, table: pa.Table, fused: dict[int, int]) -> pa.Table:
-        """R14: rows of labelled tracks carry the pair's joint estimate at the row's time."""
-        rows = np.fromiter(fused.keys(), np.int64)
-        pairs = np.fromiter(fused.values(), np.int64)
-        times = table.column("time").to_numpy()[rows]
-        # the joint estimate brought to the row's time (the pair's last report is at or before it)
-        x, P = self.identifier.pairs.joint.estimate_at(pairs, times)
-        columns = {name: table.column(name).to_numpy().astype(float).copy()
-                   for name in ("x", "y", "vx", "vy", "var_x", "var_y", "var_vx", "var_vy")}
+class _FusedRows:
+    """The joint estimates (R14 ``fusion="joint"``) of the identified rows of one chunk."""
+
+    def __init__(self, n_rows: int):
+        self.rows = np.zeros(n_rows, dtype=bool)
+        self.x = np.zeros((n_rows, 4))
+        self.var = np.zeros((n_rows, 4))
+
+    def __setitem__(self, rows: np.ndarray, estimate) -> None:
+        x, P = estimate
+        self.rows[rows] = True
+        self.x[rows] = x[:, :4]
+        self.var[rows] = np.diagonal(P, axis1=1, axis2=2)[:, :4]
+
+    def apply(self, table: pa.Table) -> pa.Table:
+        columns = {}
         for k, name in enumerate(("x", "y", "vx", "vy")):
-            columns[name][rows] = x[:, k]
-            columns["var_" + name][rows] = P[:, k, k]
-        return _replace(table, {name: pa.array(v, pa.float64()) for name, v in columns.items()})
+            for column, values in ((name, self.x[:, k]), ("var_" + name, self.var[:, k])):
+                old = table.column(column).to_numpy().astype(float)
+                columns[column] = pa.array(np.where(self.rows, values, old), pa.float64())
+        return _replace(table, columns)
 
 
 def _replace(table: pa.Table, columns: dict[str, pa.Array]) -> pa.Table:
