@@ -10,8 +10,9 @@ the machine and the date.
 
 Scene: 500 aircraft at uniform positions in a 400 km x 400 km square, speed 150-250 m/s on a
 uniform heading, straight flight; each is seen by the radar (1 Hz, 100 m per axis) and by ADS-B
-(1 Hz at a random phase, 20 m per axis): 500 tracks per system.  Identification model: CV with
-q = 1 m^2/s^3; the default coarse gate (10 km).
+(1 Hz at a random phase, 20 m per axis): 500 tracks per system.  Identifier settings: those of
+``skytrack track --adsb`` (:class:`skytrack.app.identification.AdsbIdentificationConfig`: CV with
+q = 300 m^2/s^3, a 30 s pair horizon, the outlier gate, the default coarse gate of 10 km).
 
 Usage:  python benchmarks/identify_tracks.py [--runs 5] [--tracks 500] [--duration 300]
 """
@@ -33,7 +34,8 @@ import tracemalloc  # noqa: E402
 import numpy as np  # noqa: E402
 
 from machine import cpu_model, usable_cores  # noqa: E402  (benchmarks/machine.py)
-from skytrack.identify.identifier import IdentifierConfig, TrackIdentifier  # noqa: E402
+from skytrack.app.identification import AdsbIdentificationConfig  # noqa: E402
+from skytrack.identify.identifier import TrackIdentifier  # noqa: E402
 
 
 def scene(tracks: int, duration: float, seed: int = 0):
@@ -58,9 +60,9 @@ def scene(tracks: int, duration: float, seed: int = 0):
     return side[order], ids[order], time_[order], z[order], V
 
 
-def run(reports, chunk_s: float, horizon_s: float | None = None) -> TrackIdentifier:
+def run(reports, chunk_s: float) -> TrackIdentifier:
     side, ids, time_, z, V = reports
-    identifier = TrackIdentifier(IdentifierConfig(q=1.0, horizon_s=horizon_s))
+    identifier = TrackIdentifier(AdsbIdentificationConfig().identifier_config())
     edges = np.searchsorted(time_, np.arange(0.0, time_[-1] + chunk_s, chunk_s), side="left")
     for start, stop in zip(edges[:-1], np.r_[edges[1:-1], len(time_)]):
         if stop > start:
@@ -98,7 +100,8 @@ def main() -> None:
     print(f"reports/s (median run): {n_reports / median:,.0f}   ({n_reports / median / 2 / args.tracks:,.0f}x "
           f"real time per track set)")
     print(f"mean pairs updated per report: {identifier.mean_pairs_per_report:.2f}; pairs made "
-          f"{identifier.stats['pairs_created']}, dropped {identifier.stats['pairs_dropped']}")
+          f"{identifier.stats['pairs_created']}, dropped {identifier.stats['pairs_dropped']}, refreshed "
+          f"{identifier.stats['pairs_refreshed']}; reports left out as outliers {identifier.stats['reports_gated']}")
     print(f"identified at the end: {len(result.first_id)} of {args.tracks} (correct "
           f"{int(np.sum(result.first_id - 100_000 == result.second_id - 200_000))})")
     print(f"peak memory (tracemalloc, one run): {peak / 1e6:.1f} MB")
