@@ -112,7 +112,7 @@ def identify_tracks(first: str | Path, second: str | Path, out: str | Path, *, s
     else:
         tracks_b, reports_b = _tracks_with_reports(second)
         other = track_system(reports_b, tracks_b, source)
-    refuse_overwriting(out, plots=first, sensors=sensors or out)
+    refuse_overwriting(out, first=first, second=second, sensors=sensors, truth=truth)
     if is_plots_file(first):
         if sensor_set is None:
             raise ValueError(f"{first} holds plots: give --sensors to track them first")
