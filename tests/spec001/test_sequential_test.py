@@ -236,3 +236,21 @@ def test_batched_pairs_equal_single_pairs(tv3):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert both.forms().dof.tolist() == [4, 4]
+
+
+def test_r5_design_separation_modes_on_tv5():
+    """R5: lambda_d from a state difference or a minimum separation (TV-5b, +100 m: h = 14.881644)."""
+    # TV-5a separate covariances at t = 9.3, per axis [[pos, pos-vel], [pos-vel, vel]]
+    radar = np.array([[948.181818, 145.454545], [145.454545, 30.303030]])
+    adsb = np.array([[138.181818, 21.818182], [21.818182, 4.848485]])
+    per_axis = radar + adsb
+    S = np.zeros((4, 4))
+    for axis in range(2):  # position-first order [x, y, vx, vy]
+        S[np.ix_([axis, axis + 2], [axis, axis + 2])] = per_axis
+    by_difference = Threshold(p_incorrect=0.01, state_difference=(100.0, 0.0, 0.0, 0.0))
+    by_separation = Threshold(p_incorrect=0.01, min_separation_m=100.0)
+    assert by_difference.design_noncentrality(S[None], 1)[0] == pytest.approx(34.438087, abs=1e-4)
+    for rule in (by_difference, by_separation):
+        assert rule.value(np.array([4]), covariance_sum=S[None])[0] == pytest.approx(14.881644, rel=1e-5)
+    with pytest.raises(ValueError, match="exactly one"):
+        Threshold(p_incorrect=0.01)

@@ -27,6 +27,9 @@ import pyarrow as pa
 from skytrack.app.identification import AdsbIdentificationConfig, TrackLabeler, adsb_system, covered_area, track_system
 
 SOURCES = ("radar", "iff")
+#: spec 001 R1: what the radar reports are, said in every summary
+APPROXIMATE_POLAR = ("radar reports are plots converted from range and azimuth by linearisation: their Gaussian "
+                     "covariance, and so the test, is approximate (spec 001 R1)")
 
 
 @dataclass
@@ -45,13 +48,14 @@ class IdentifySummary:
     stats: dict = field(default_factory=dict)
     report: object = None
     """the report against truth (``None`` without truth)"""
+    notes: list[str] = field(default_factory=lambda: [APPROXIMATE_POLAR])
 
     def to_dict(self) -> dict:
         report = self.report.to_dict() if hasattr(self.report, "to_dict") else self.report
         return {"tracks_file": self.tracks_file, "pairs_file": self.pairs_file, "events_file": self.events_file,
                 "other_kind": self.other_kind, "track_rows": self.track_rows, "labelled_rows": self.labelled_rows,
                 "tracks_identified": self.tracks_identified, "pair_rows": self.pair_rows, "stats": self.stats,
-                "report": report}
+                "notes": list(self.notes), "report": report}
 
 
 def _side_path(out: Path, kind: str) -> Path:

@@ -59,6 +59,8 @@ def identify_tracks_command(
     table.add_row("reports", f"{stats['radar_reports']} radar, {stats['adsb_reports']} system 2; "
                              f"{stats['pairs_created']} pairs made, {stats['pairs_dropped']} dropped")
     console.print(table)
+    for note in summary.notes:
+        console.print(f"note: {note}", highlight=False)
     if summary.report is not None:
         if summary.other_kind == "adsb":
             from skytrack.cli.identification_view import identification_table
