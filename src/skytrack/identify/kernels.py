@@ -71,15 +71,9 @@ def _predict_cv(x, P, ndim, dt, q, work):
 
 
 @njit(cache=True)
-def _update_covariance(x, P, z, V, m, work):
-    """Joseph update with H = [I_m 0] without allocation; returns (ν^T S^{-1} ν, ln det S).
-
-    ``work`` is ``[5, max(n, 3), n]`` scratch: Cholesky factor of S, S^{-1}, the gain, (I − K H) P, vectors.
-    """
-    n = x.shape[0]
-    chol, s_inv, gain, product = work[0], work[1], work[2], work[3]
-    solve, nu, correction = work[4, 0], work[4, 1], work[4, 2]
-    for i in range(m):  # Cholesky factor of S = P_mm + V
+def _innovation_cholesky(P, V, m, chol):
+    """Lower Cholesky factor of S = H P H^T + V for H = [I_m 0], written into ``chol``."""
+    for i in range(m):
         for j in range(i + 1):
             total = P[i, j] + V[i, j]
             for k in range(j):
@@ -88,6 +82,18 @@ def _update_covariance(x, P, z, V, m, work):
                 chol[i, i] = np.sqrt(total)
             else:
                 chol[i, j] = total / chol[j, j]
+
+
+@njit(cache=True)
+def _update_covariance(x, P, z, V, m, work):
+    """Joseph update with H = [I_m 0] without allocation; returns (ν^T S^{-1} ν, ln det S).
+
+    ``work`` is ``[5, max(n, 3), n]`` scratch: Cholesky factor of S, S^{-1}, the gain, (I − K H) P, vectors.
+    """
+    n = x.shape[0]
+    chol, s_inv, gain, product = work[0], work[1], work[2], work[3]
+    solve, nu, correction = work[4, 0], work[4, 1], work[4, 2]
+    _innovation_cholesky(P, V, m, chol)
     for col in range(m):  # S^{-1} column by column: forward then back substitution
         for i in range(m):
             total = 1.0 if i == col else 0.0
@@ -185,15 +191,7 @@ def _information_minimum(Y, y, c0):
 @njit(cache=True)
 def _normalised_innovation(x, P, z, V, m, chol, solve):
     """ν^T S^{-1} ν of a report against a covariance-form filter (nothing changes)."""
-    for i in range(m):
-        for j in range(i + 1):
-            total = P[i, j] + V[i, j]
-            for k in range(j):
-                total -= chol[i, k] * chol[j, k]
-            if i == j:
-                chol[i, i] = np.sqrt(total)
-            else:
-                chol[i, j] = total / chol[j, j]
+    _innovation_cholesky(P, V, m, chol)
     quadratic = 0.0
     for i in range(m):
         total = z[i] - x[i]
