@@ -155,3 +155,20 @@ def test_report_errors_name_the_report():
     identifier.end_tracks(1, ["a"])
     with pytest.raises(ValueError, match="has ended"):
         identifier.process([1], ["a"], [6.0], [[0.0, 0.0]], [np.eye(2)])
+
+
+def test_replay_uses_the_last_reports_of_each_track(tv3):
+    """With a 3-report buffer the replayed pair equals the sequential test on the last 3 reports of
+    each track (the buffer wrapped), merged in time order."""
+    from skytrack.identify.model import cv_model
+    from skytrack.identify.sequential import SequentialPairTest
+
+    time, system, z, V = tv3("same")
+    identifier = TrackIdentifier(IdentifierConfig(q=25.0, pair_init="replay", history=3, batch_s=100.0))
+    identifier.process(system, np.where(system == 1, "R", "A"), time, z, V)
+    keep = np.r_[1, 2, 3, 5, 6, 7]  # the last three of each system
+    expected = SequentialPairTest(cv_model(2, 25.0))
+    expected.run(time[keep], system[keep], z[keep], V[keep])
+    assert identifier.pairs.size == 1
+    assert identifier.pairs.statistic[0] == pytest.approx(expected.statistic[0], abs=1e-9)
+    np.testing.assert_allclose(identifier.pairs.joint.x[0], expected.joint.x[0], atol=1e-9)

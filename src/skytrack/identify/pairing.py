@@ -158,31 +158,43 @@ class ReportHistory:
 def replay_pairs(model: IdentificationModel, history: ReportHistory, first: np.ndarray, second: np.ndarray):
     """Exact pair initialisation: the sequential test replayed on the stored reports of both tracks.
 
-    Returns (x, P, t) of each pair's joint filter after its last report, Λ and dof.
+    The merged streams of the new pairs are laid side by side (padded); step s feeds every pair's
+    s-th report at once, one call per (system, measured dimension).  Returns (x, P, t) of each
+    pair's joint filter after its last report, Λ and dof.
     """
     k = len(first)
-    streams = []
-    for p in range(k):
-        # one merged stream per new pair: a creation-time step, not the per-report hot path
-        t1, z1, V1, m1 = history.reports(int(first[p]))
-        t2, z2, V2, m2 = history.reports(int(second[p]))
-        time = np.r_[t1, t2]
-        system = np.r_[np.ones(len(t1), np.int8), np.full(len(t2), 2, np.int8)]
-        order = np.lexsort((np.arange(len(time)), system, time))
-        streams.append((time[order], system[order], np.r_[z1, z2][order], np.r_[V1, V2][order],
-                        np.r_[m1, m2][order]))
+    count = np.minimum(history.count, history.length)
+    n1, n2 = count[first], count[second]
+    length = int((n1 + n2).max()) if k else 0
+    n = history.n
+    time = np.full((k, length), np.inf)
+    system = np.zeros((k, length), np.int8)
+    z = np.zeros((k, length, n))
+    V = np.zeros((k, length, n, n))
+    m = np.zeros((k, length), np.int64)
+    for rows, counts, label in ((first, n1, 1), (second, n2, 2)):
+        offset = 0 if label == 1 else n1
+        # slot of the j-th oldest stored report of each track, for j < its count
+        j = np.arange(history.length)
+        valid = j[None, :] < counts[:, None]
+        slots = (history.count[rows][:, None] - counts[:, None] + j[None, :]) % history.length
+        pair, step = np.nonzero(valid)
+        where = offset[pair] + step if label == 2 else step
+        track_rows, slot = rows[pair], slots[pair, step]
+        time[pair, where] = history.t[track_rows, slot]
+        system[pair, where] = label
+        z[pair, where] = history.z[track_rows, slot]
+        V[pair, where] = history.V[track_rows, slot]
+        m[pair, where] = history.m[track_rows, slot]
+    # merge order per pair: by time, system 1 first at equal times (stable sort keeps report order)
+    order = np.lexsort((system, time), axis=1) if length else np.zeros((k, 0), np.intp)
+    take = np.arange(k)[:, None]
+    time, system, z, V, m = time[take, order], system[take, order], z[take, order], V[take, order], m[take, order]
     test = SequentialPairTest(model, k)
-    longest = max(len(s[0]) for s in streams)
-    for step in range(longest):
-        rows = np.array([p for p in range(k) if step < len(streams[p][0])])
-        for system in (1, 2):
-            for m in np.unique([streams[p][4][step] for p in rows]):
-                sel = np.array([p for p in rows if streams[p][1][step] == system and streams[p][4][step] == m])
-                if len(sel) == 0:
-                    continue
-                t = np.array([streams[p][0][step] for p in sel])
-                z = np.array([streams[p][2][step][:m] for p in sel])
-                V = np.array([streams[p][3][step][:m, :m] for p in sel])
-                test.add(system, t, z, V, rows=sel)
+    for step in range(length):
+        for label in (1, 2):
+            for dim in np.unique(m[:, step][system[:, step] == label]):
+                rows = np.flatnonzero((system[:, step] == label) & (m[:, step] == dim))
+                test.add(label, time[rows, step], z[rows, step, :dim], V[rows, step, :dim, :dim], rows=rows)
     forms = test.forms()
     return test.joint.x.copy(), test.joint.P.copy(), test.joint.t.copy(), forms.statistic, forms.dof
