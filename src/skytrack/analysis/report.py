@@ -13,6 +13,13 @@ the tracker's own placement, :func:`skytrack.models.conversion.place_plots`:
   sensor frame), the classical PPI display; the figure's footnote counts each case;
 
 in the common ENU frame (per-plot platform positions ``platform_x/y/z`` for airborne radars).
+
+The PPI is an identified air picture when the tracks carry identities (``icao24``,
+``callsign``: filled by ``skytrack track --adsb``, issue 9 item 7, spec 001 R13): every track
+identified at its last row is labelled there with its callsign (its address when it has no
+callsign), in a small font at the end of a thin leader, the leaders pointing away so that
+labels do not cover each other (:func:`place_labels`); unidentified tracks keep the track-id
+labels of the longest tracks.
 """
 
 from __future__ import annotations
@@ -112,13 +119,39 @@ def _in_window(frame: pd.DataFrame | None, window: tuple[float, float] | None) -
 
 def _lines(frame: pd.DataFrame, keys: list[str]) -> list[np.ndarray]:
     """Polylines in km, one per group of ``keys``, ordered by time."""
+    return _keyed_lines(frame, keys)[1]
+
+
+def _keyed_lines(frame: pd.DataFrame | None, keys: list[str]) -> tuple[list, list[np.ndarray]]:
+    """The groups of ``keys`` with at least two rows (in sorted order) and their polylines in km."""
     if frame is None or len(frame) == 0:
-        return []
+        return [], []
     ordered = frame.sort_values([*keys, "time"], kind="stable")
     xy = ordered[["x", "y"]].to_numpy(dtype=float) / _KM
     group = ordered.groupby(keys, sort=False).ngroup().to_numpy()
     cuts = np.flatnonzero(np.diff(group)) + 1
-    return [line for line in np.split(xy, cuts) if len(line) >= 2]
+    first_rows = np.r_[0, cuts]
+    names = ordered[keys[0]].to_numpy()[first_rows] if len(keys) == 1 else \
+        list(ordered[keys].iloc[first_rows].itertuples(index=False, name=None))
+    kept = [(name, line) for name, line in zip(names, np.split(xy, cuts)) if len(line) >= 2]
+    return [name for name, _ in kept], [line for _, line in kept]
+
+
+def track_identities(tracks: pd.DataFrame) -> pd.DataFrame:
+    """Per track: ``x, y`` of its last row and the ``label`` it carries there (callsign, else
+    icao24, else null), indexed by ``track_id``.  A track that lost its label keeps none: the
+    picture shows the identity the track has now, not one it had."""
+    # the last row itself (groupby().last() would take each column's last non-null value)
+    last = tracks.sort_values(["track_id", "time"], kind="stable").drop_duplicates("track_id", keep="last")
+    last = last.set_index("track_id")
+    label = np.full(len(last), None, dtype=object)
+    for column in ("icao24", "callsign"):  # the callsign, when there is one, wins
+        if column in last.columns:
+            text = last[column].astype("string").str.strip()
+            given = (text.notna() & (text != "")).to_numpy()
+            label[given] = text.to_numpy(dtype=object)[given]
+    return pd.DataFrame({"x": last["x"].to_numpy(float), "y": last["y"].to_numpy(float),
+                         "label": pd.Series(label, index=last.index, dtype=object)}, index=last.index)
 
 
 def _nice_step(span_km: float) -> float:
@@ -202,7 +235,8 @@ def ppi_figure(
 ) -> Figure:
     """The figure of :func:`plot_ppi`.  Truth is drawn as wide light lines under the tracks
     and the target plots as small dots over them, so that neither hides the other; tracks
-    take 60 distinct colour and dash styles."""
+    take 60 distinct colour and dash styles.  Tracks identified at their last row carry their
+    callsign (or address) there; the ``n_track_labels`` longest of the others their id."""
     by_name = _sensor_map(sensors)
     plots_df, truth_df, tracks_df = (_in_window(f, time_window) for f in (plots_df, truth_df, tracks_df))
     fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
@@ -237,22 +271,30 @@ def ppi_figure(
         handles.append(Line2D([], [], color=TRUTH_COLOUR, lw=TRUTH_WIDTH,
                               label=f"truth ({truth_df['target_id'].nunique()} objects)"))
     n_tracks = 0
+    labels: list[tuple] = []
     if tracks_df is not None and len(tracks_df):
-        lines = _lines(tracks_df, ["track_id"])
-        ids = np.sort(tracks_df["track_id"].unique())
-        n_tracks = ids.size
+        line_ids, lines = _keyed_lines(tracks_df, ["track_id"])
+        n_tracks = tracks_df["track_id"].nunique()
         styles = track_styles(len(lines))
+        colour_of = {track_id: colour for track_id, (colour, _) in zip(line_ids, styles)}
         ax.add_collection(LineCollection(lines, colors=[c for c, _ in styles], linestyles=[d for _, d in styles],
                                          linewidths=TRACK_WIDTH, zorder=4, label="tracks"))
+        identities = track_identities(tracks_df)
+        identified = identities[identities["label"].notna()]
+        lengths = tracks_df.groupby("track_id").size().sort_values(ascending=False, kind="stable")
+        with_id = [t for t in lengths.index if t not in identified.index][:n_track_labels]
         handles.append(Line2D([], [], color=TRACK_COLOURS[0], lw=TRACK_WIDTH,
                               label=f"tracks ({n_tracks}, {min(n_tracks, 60)} styles; ids on the "
-                                    f"{min(n_track_labels, n_tracks)} longest)"))
-        lengths = tracks_df.groupby("track_id").size().sort_values(ascending=False, kind="stable")
-        last = tracks_df.sort_values("time").groupby("track_id")[["x", "y"]].last()
-        for track_id in lengths.index[:n_track_labels]:
-            x, y = last.loc[track_id] / _KM
-            ax.annotate(str(track_id), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=7, zorder=6,
-                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
+                                    f"{len(with_id)} longest unidentified)"))
+        if len(identified):
+            handles.append(Line2D([], [], color="0.15", lw=LEADER_WIDTH,
+                                  label=f"callsign (else address) of the {len(identified)} identified tracks, "
+                                        "at their last position"))
+        # callsigns first: they win the free places around their tracks
+        labels = [(str(label), x / _KM, y / _KM, colour_of.get(track_id, "0.3"), CALLSIGN_FONT, "0.05")
+                  for track_id, (x, y, label) in identified.iterrows()]
+        labels += [(str(track_id), identities.at[track_id, "x"] / _KM, identities.at[track_id, "y"] / _KM,
+                    colour_of.get(track_id, "0.3"), TRACK_ID_FONT, "0.3") for track_id in with_id]
     radars = [s for s in by_name.values() if s.is_radar]
     _draw_radars(ax, radars, ring_spacing_km, handles)
     if extent_km is not None:
@@ -261,6 +303,8 @@ def ppi_figure(
     else:
         ax.autoscale_view()
     ax.set_aspect("equal", adjustable="datalim")
+    if labels:
+        _draw_labels(ax, labels)
     ax.set_xlabel("East [km]")
     ax.set_ylabel("North [km]")
     window = f", t = {time_window[0]:g}..{time_window[1]:g} s" if time_window else ""
@@ -270,6 +314,74 @@ def ppi_figure(
     if footnote:
         fig.text(0.01, 0.002, " | ".join(footnote), fontsize=7, color="0.3", ha="left", va="bottom")
     return fig
+
+
+#: label fonts (points) and the leader line from a track's last position to its label
+CALLSIGN_FONT = 6.0
+TRACK_ID_FONT = 6.5
+LEADER_WIDTH = 0.5
+#: where a label may go, in points from its anchor: 8 directions on growing rings
+_LABEL_RADII = (9.0, 16.0, 26.0, 40.0)
+_LABEL_DIRECTIONS = ((1, 1), (-1, 1), (1, -1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+def place_labels(anchors: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Greedy placement of text boxes around anchor points, all in points on the page.
+
+    ``anchors [N, 2]`` are the points labelled, ``sizes [N, 2]`` the boxes' width and height.
+    Each box in turn takes the first offset (8 directions on rings of growing radius, the box
+    on the far side of its leader's end) that overlaps neither a box already placed nor an
+    anchor; when none is free, the one with the least overlap.  Returns the offsets ``[N, 2]``
+    of the leaders' ends (the boxes extend away from the anchor from there)."""
+    directions = np.array(_LABEL_DIRECTIONS, dtype=float)
+    unit = directions / np.linalg.norm(directions, axis=1)[:, None]
+    offsets = np.concatenate([radius * unit for radius in _LABEL_RADII])
+    signs = np.tile(directions, (len(_LABEL_RADII), 1))
+    placed = np.empty((0, 4))  # x0, y0, x1, y1 of boxes placed
+    dot = 1.5
+    points = np.column_stack([anchors - dot, anchors + dot]) if len(anchors) else np.empty((0, 4))
+    chosen = np.zeros((len(anchors), 2))
+    for k, (anchor, (width, height)) in enumerate(zip(anchors, sizes)):
+        corner = anchor + offsets
+        # the box sits right of / above its leader's end for positive signs, centred for zero
+        x0 = corner[:, 0] - np.where(signs[:, 0] > 0, 0.0, np.where(signs[:, 0] < 0, width, width / 2))
+        y0 = corner[:, 1] - np.where(signs[:, 1] > 0, 0.0, np.where(signs[:, 1] < 0, height, height / 2))
+        boxes = np.column_stack([x0, y0, x0 + width, y0 + height])
+        others = np.concatenate([placed, np.delete(points, k, axis=0)])
+        overlap = _overlap_area(boxes, others)
+        best = int(np.argmax(overlap == 0.0)) if (overlap == 0.0).any() else int(np.argmin(overlap))
+        chosen[k] = offsets[best]
+        placed = np.vstack([placed, boxes[best]])
+    return chosen
+
+
+def _overlap_area(boxes: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Total overlap area of each of ``boxes [M, 4]`` with ``others [K, 4]``."""
+    if len(others) == 0:
+        return np.zeros(len(boxes))
+    width = np.minimum(boxes[:, None, 2], others[None, :, 2]) - np.maximum(boxes[:, None, 0], others[None, :, 0])
+    height = np.minimum(boxes[:, None, 3], others[None, :, 3]) - np.maximum(boxes[:, None, 1], others[None, :, 1])
+    return (np.clip(width, 0, None) * np.clip(height, 0, None)).sum(axis=1)
+
+
+def _draw_labels(ax, labels: list[tuple]) -> None:
+    """``(text, x_km, y_km, track colour, font size, text colour)`` as annotations with leaders."""
+    ax.apply_aspect()  # the final limits, so that km convert to points as they will be drawn
+    fig = ax.figure
+    box = ax.get_position()
+    width_pt, height_pt = box.width * fig.get_figwidth() * 72.0, box.height * fig.get_figheight() * 72.0
+    (x_lo, x_hi), (y_lo, y_hi) = ax.get_xlim(), ax.get_ylim()
+    xy = np.array([(x, y) for _, x, y, *_ in labels], dtype=float)
+    anchors = np.column_stack([(xy[:, 0] - x_lo) / (x_hi - x_lo) * width_pt, (xy[:, 1] - y_lo) / (y_hi - y_lo) * height_pt])
+    pad = 2.0
+    sizes = np.array([(0.62 * size * len(text) + 2 * pad, 1.25 * size + 2 * pad) for text, _, _, _, size, _ in labels])
+    offsets = place_labels(anchors, sizes)
+    for (text, x, y, colour, size, text_colour), (dx, dy) in zip(labels, offsets):
+        ax.annotate(text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=size, color=text_colour,
+                    ha="left" if dx > 0.5 else "right" if dx < -0.5 else "center",
+                    va="bottom" if dy > 0.5 else "top" if dy < -0.5 else "center", zorder=7,
+                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75),
+                    arrowprops=dict(arrowstyle="-", lw=LEADER_WIDTH, color=colour, shrinkA=0.0, shrinkB=0.0))
 
 
 def _draw_radars(ax, radars: list[Sensor], ring_spacing_km: float | None, handles: list) -> None:

@@ -372,13 +372,14 @@ def demo(
     scenario: Annotated[str, typer.Option(help="Scenario file or bundled name.")] = "demo",
     seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise.")] = None,
 ) -> None:
-    """Simulate the demo scenario, track it, evaluate it and write a report folder (exit 1 when a check fails)."""
+    """Simulate the demo scenario, track it (identifying the tracks with its ADS-B), evaluate it and write a report folder (exit 1 when a check fails)."""
     from skytrack.app.demo import run_demo
-    from skytrack.cli.demo import demo_passed, print_demo_checks
+    from skytrack.cli.demo import demo_passed, print_demo_checks, print_demo_identification
 
     with _progress() as progress:
         result = run_demo(out, scenario, seed, progress=progress)
     _print_evaluation(result.evaluation, result.metrics_path)
+    print_demo_identification(console, result)
     print_demo_checks(console, result)
     if not demo_passed(result):
         console.print("[bold red]error:[/] a demo check failed (FAIL above); the report folder is written")
