@@ -1,5 +1,6 @@
-"""Parsers of the scenario sections: sensors (with their IFF interrogator and an airborne
-radar's carrier), targets with their legs (and their ADS-B settings, read by
+"""Parsers of the scenario sections: sensors (with their IFF interrogator, an airborne
+radar's carrier, and ``secondary_only`` for an interrogator without primary radar: spec 001's
+system З, issue 9), targets with their legs (and their ADS-B settings, read by
 :func:`skytrack.sim.adsb.parse_adsb_aircraft`), and random traffic.
 
 Each parser reads one section of a scenario document through :class:`~skytrack.sim._validate.Fields`
@@ -55,7 +56,8 @@ _SENSOR_VALUE_KEYS = (
     "p_detection", "clutter_per_scan",
 )
 _SENSOR_SIM_KEYS = ("p_mode3a", "p_mode_c", "clutter_elevation_deg", "clutter_range_rate_mps",
-                    "clutter_distribution", "clutter_patches", "clutter_p_mode3a", "clutter_p_mode_c", "iff")
+                    "clutter_distribution", "clutter_patches", "clutter_p_mode3a", "clutter_p_mode_c", "iff",
+                    "secondary_only")
 #: per-sensor only (no sensor_defaults): the flight of a radar-airborne sensor's carrier
 _CARRIER_KEY = "carrier"
 _IFF_KEYS = ("p_reply", "p_flip", "p_code", "false_reply_p", "interrogate")
@@ -164,6 +166,11 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
         sigma_el = None
     # an airborne radar looks down as well as up
     min_el = f.number("min_elevation_deg", -90.0 if airborne else 0.0, ge=-90.0, lt=90.0)
+    secondary_only = f.boolean("secondary_only", False)
+    if secondary_only and airborne:
+        raise f.error("secondary_only", "is only available for ground sensors (radar-2d, radar-3d), not radar-airborne")
+    if secondary_only and f.has("sigma_range_rate_mps"):
+        raise f.error("sigma_range_rate_mps", "is not allowed with secondary_only: an interrogator measures no range rate")
     sensor = Sensor(
         name=name,
         type=kind,
@@ -192,9 +199,11 @@ def _parse_sensor(f: Fields, origin: Origin) -> tuple[Sensor, RadarSimParams]:
         clutter_range_rate_mps=f.interval("clutter_range_rate_mps", (-300.0, 300.0)),
         clutter_distribution=f.string("clutter_distribution", "range", choices=("range", "area")),
         clutter_patches=_parse_patches(f, sensor.max_range_m),
-        clutter_p_mode3a=f.number("clutter_p_mode3a", 0.0, ge=0.0, le=1.0),
-        clutter_p_mode_c=f.number("clutter_p_mode_c", 0.0, ge=0.0, le=1.0),
+        # a false reply (fruit) of an interrogator carries a code and a height, a primary false plot none
+        clutter_p_mode3a=f.number("clutter_p_mode3a", 1.0 if secondary_only else 0.0, ge=0.0, le=1.0),
+        clutter_p_mode_c=f.number("clutter_p_mode_c", 1.0 if secondary_only else 0.0, ge=0.0, le=1.0),
         iff=_parse_iff(f.sub("iff", _IFF_KEYS, None)),
+        secondary_only=secondary_only,
     )
     return sensor, sim
 

@@ -33,6 +33,15 @@ crossing of its azimuth.  A false plot carries a random Mode 3/A code (uniform o
 0-45 000 ft, rounded to 100 ft as the targets' are) with probability ``clutter_p_mode_c``;
 never a Mode S address.  Random numbers for patches and false-plot SSR are drawn only
 when a sensor has them, so the false plots of a sensor without them do not change.
+
+Interrogator (``secondary_only``; spec 001's system З, issue 9): a secondary-surveillance or
+IFF interrogator has no primary echo, so only targets that reply give plots.
+:func:`radar_plots` takes the ``replying`` targets; a beam crossing in coverage gives a plot
+with probability ``p_detection`` (the reply probability, which is also what the tracker reads
+as this sensor's P_D), with the sensor's own range and azimuth noise and the replies' Mode 3/A,
+Mode C and Mode S.  Its false plots are false replies (fruit, ``clutter_per_scan`` and patches),
+drawn as a primary radar's false plots are.  The simulator gives an interrogator a random
+stream of its own, so adding one to a scenario leaves the other sensors' plots unchanged.
 """
 
 from __future__ import annotations
@@ -172,9 +181,13 @@ def _refine_crossing_times(sensor: Sensor, traj: TrajectorySet, truth: TruthSamp
 
 
 def radar_plots(
-    sensor: Sensor, params: RadarSimParams, traj: TrajectorySet, truth: TruthSamples, rng: np.random.Generator
+    sensor: Sensor, params: RadarSimParams, traj: TrajectorySet, truth: TruthSamples, rng: np.random.Generator,
+    replying: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
-    """Target plots of one rotating radar as plot columns (unsorted, see PLOT_COLUMNS)."""
+    """Target plots of one rotating radar as plot columns (unsorted, see PLOT_COLUMNS).
+
+    ``replying`` ``[n_targets]`` bool: an interrogator's targets that answer (the others give
+    no plot); None = a primary radar, which sees every target."""
     crossings = _enumerate_crossings(sensor, truth)
     time = _refine_crossing_times(sensor, traj, truth, crossings)
     target = crossings.target
@@ -185,6 +198,8 @@ def radar_plots(
     velocity = np.stack([state["vx"], state["vy"], state["vz"]], axis=1)
     r, az, el, rdot, ground = polar_view(sensor, position, velocity)
     detected = in_coverage(sensor, r, el, ground, state["alt_m"]) & (rng.random(time.size) < sensor.p_detection)
+    if replying is not None:
+        detected &= replying[target]
     return measured_plots(sensor, params, traj, rng, target, time, scan_index(sensor, time), (r, az, el, rdot),
                           detected, state["alt_m"])
 

@@ -83,7 +83,29 @@ Simulation-only keys (not written to sensors.json):
                           over 0-45 000 ft rounded to 100 ft (default 0)
 ``iff``                   IFF interrogator of this radar (any type; default none: the plots'
                           ``iff`` column stays empty), below
+``secondary_only``        true: the sensor is an interrogator without primary radar (below);
+                          default false
 Every false plot (coverage-wide or in a patch) comes when the beam crosses its azimuth.
+
+Interrogator (``secondary_only: true``) -- secondary surveillance / IFF without primary radar
+---------------------------------------------------------------------------------------------
+A radar-2d or radar-3d (not radar-airborne; no ``sigma_range_rate_mps``) that sees only the
+aircraft that reply: a target with a transponder (``transponder``, ``mode3a``, ``icao24``), and,
+when the sensor has an ``iff`` section, a target with an ``iff`` status.  Its keys keep their
+meaning with these readings:
+``p_detection``           the probability that a replying aircraft in coverage answers at a beam
+                          crossing (the reply probability; the tracker reads it as this
+                          sensor's P_D in sensors.json)
+``scan_period_s``, ``sigma_range_m``, ``sigma_azimuth_deg``  the interrogator's own (e.g. 5 s,
+                          20 m, 0.04 deg: a monopulse SSR)
+``clutter_per_scan``, ``clutter_patches``  false replies (fruit) per revolution, default none
+``clutter_p_mode3a``, ``clutter_p_mode_c``  probability that a false reply carries a random
+                          Mode 3/A code / Mode C height: default 1 here
+``p_mode3a``, ``p_mode_c`` as for any radar: the replies' Mode 3/A and Mode C; Mode S
+                          addresses are always given; with ``iff`` the plots' ``iff`` and
+                          ``mode3a`` come from the IFF replies as for any radar
+An interrogator draws from a random stream of its own: adding one to a scenario leaves the
+other sensors' plots bit-identical.
 
 Airborne radar (``type: radar-airborne``) -- spec 003 §2.3, R17
 ----------------------------------------------------------------

@@ -37,6 +37,12 @@ Generator derived from the scenario seed), so Monte Carlo runs over one scenario
 same truth.  IFF replies come from a generator spawned from ``rng`` (one child per radar,
 :meth:`numpy.random.Generator.spawn`, which draws nothing from ``rng``): adding, removing or
 changing an ``iff`` section leaves every other column bit-identical.
+
+Interrogators (``secondary_only``, :mod:`skytrack.sim.radar`): the targets that reply are those
+with a transponder, and, when the interrogator has an ``iff`` section, those with an IFF
+status.  An interrogator draws its detections, noise, replies and fruit from a generator of its
+own, spawned after the IFF children (only when the scenario has an interrogator), so the
+plots of every other sensor are the same with or without it.
 """
 
 from __future__ import annotations
@@ -137,13 +143,20 @@ def simulate(
     report(_PROGRESS_TRAJECTORIES + _PROGRESS_TRUTH)
     parts = []
     radars = sensors.sensors
-    iff_streams = _spawn(sensor_rng, len(radars))
+    interrogators = any(scenario.radar_params[s.name].secondary_only for s in radars)
+    # one spawn for both: children 0..n-1 are the IFF streams whether or not there are interrogators
+    streams = _spawn(sensor_rng, len(radars) * (2 if interrogators else 1))
+    iff_streams, reply_streams = streams[: len(radars)], streams[len(radars):]
     responder = _Responder(targets, traj)
     done = _PROGRESS_TRAJECTORIES + _PROGRESS_TRUTH
     for number, sensor in enumerate(radars):
         params = scenario.radar_params[sensor.name]
         if sensor.is_moving:
             generated = [airborne_plots(sensor, params, carriers, traj, scenario.duration_s, sensor_rng)]
+        elif params.secondary_only:
+            own = reply_streams[number]
+            generated = [radar_plots(sensor, params, traj, truth.samples, own, replying=responder.replying(params)),
+                         clutter_plots(sensor, params, scenario.duration_s, own)]
         else:
             generated = [radar_plots(sensor, params, traj, truth.samples, sensor_rng),
                          clutter_plots(sensor, params, scenario.duration_s, sensor_rng)]
@@ -226,6 +239,11 @@ class _Responder:
             if target.iff_p_reply is not None:
                 self.p_reply[k] = target.iff_p_reply
         self.ids = pd.Index(traj.ids)
+        self.transponder = traj.transponder
+
+    def replying(self, params: RadarSimParams) -> np.ndarray:
+        """Targets that answer an interrogator: a transponder, or an IFF status when it interrogates IFF."""
+        return self.transponder | (self.status >= 0) if params.iff is not None else self.transponder.copy()
 
     def fill(self, columns: dict[str, np.ndarray], params: RadarSimParams, rng: np.random.Generator) -> None:
         """Set the ``iff`` column and, for a radar with an interrogator, its ``mode3a`` column."""

@@ -193,6 +193,10 @@ class RadarSimParams:
     """IFF interrogator; None = no IFF replies (the plots' iff column stays empty)"""
     carrier: TargetSpec | None = None
     """the flight of a radar-airborne sensor's carrier (same keys and legs as a target)"""
+    secondary_only: bool = False
+    """an interrogator (secondary surveillance / IFF) without primary radar: only targets that
+    reply give plots (``p_detection`` is the reply probability) and the false plots are false
+    replies (fruit); see :mod:`skytrack.sim.radar`"""
 
 
 @dataclass(frozen=True)
