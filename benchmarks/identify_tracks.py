@@ -12,7 +12,7 @@ Scene: 500 aircraft at uniform positions in a 400 km x 400 km square, speed 150-
 uniform heading, straight flight; each is seen by the radar (1 Hz, 100 m per axis) and by ADS-B
 (1 Hz at a random phase, 20 m per axis): 500 tracks per system.  Identifier settings: those of
 ``skytrack track --adsb`` (:class:`skytrack.app.identification.AdsbIdentificationConfig`: CV with
-q = 300 m^2/s^3, a 30 s pair horizon, the outlier gate, the default coarse gate of 10 km).
+q = 300 m^2/s^3, a 20 s pair horizon, the outlier gate, the default coarse gate of 10 km).
 
 Usage:  python benchmarks/identify_tracks.py [--runs 5] [--tracks 500] [--duration 300]
 """

@@ -82,7 +82,7 @@ def test_lenient_run_reports_skipped_rows(crossing, tmp_path):
     data = summary.to_dict()
     assert set(data) == {"plots", "tracks_file", "track_rows", "elapsed_s", "stats", "warnings", "report", "tracking_dim",
                          "no_tracks_reason", "identity_events_file", "identity_event_rows", "no_identity_events_reason",
-                         "identification"}
+                         "identification", "reports_file", "report_rows"}
     assert "2 skipped" in data["report"]
 
 

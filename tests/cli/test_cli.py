@@ -239,11 +239,6 @@ def test_demo_reports_the_identification(demo_run):
         assert text in output
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 9 acceptance on the demo's seed fails outside the demo: the report's per-instant association "
-    "counts one coasting row of AC0011's track, 2.4 km behind it in a turn, as a labelled false track "
-    "(analysis.identification), and the labeller drops AC0007's label for 48 s after a turn (its pair's "
-    "Lambda 34.7 > chi2_4(0.9999)), 91 % < 95 % of rows held (app.identification)"))
 def test_demo_passes_the_identification_checks(demo_run):
     _, result, metrics = demo_run
     checks = metrics["demo"]["checks"]

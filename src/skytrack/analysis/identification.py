@@ -21,12 +21,15 @@ Steps:
    aircraft that has just left coverage is not a false track) by the gated least-squares
    assignment of :func:`~skytrack.analysis.evaluate.evaluate` (:func:`metrics.cutoff_matching`,
    order 2, gate ``cutoff_m``, default :data:`~skytrack.analysis.evaluate.DEFAULT_GATE_M`),
-   horizontally when the tracks have no ``z`` (2-D tracking), else in 3-D.
+   horizontally when the tracks have no ``z`` (2-D tracking), else in 3-D.  Then each row takes
+   the object that most of its track's rows within ±3 instants are associated to
+   (:func:`skytrack.analysis.row_association.smooth_along_tracks`): a one-instant swap of two tracks at a close crossing, or a
+   coasting row that lags outside the gate in a turn, is not the track following another object.
 2. **Addresses.**  Each address of the reports belongs to the truth object that sent most of
    its reports, unless it is some object's *own* address (below), which then owns it.  An
    object's own address comes from ``aircraft`` (``target_id, icao24``: the simulator's
    ``result.targets`` or ``result.adsb_aircraft``), else from an ``icao24`` column of the truth,
-   else from its ``target_id`` when that is 6 hex digits (recorded aircraft).  The *correct
+   else from its ``target_id`` when that is 6 hex digits that some report sends (recorded aircraft).  The *correct
    label* of an object is its own address when known, else the address it owns among those
    it sends (the one it sends most).  An ADS-B-equipped aircraft is a truth object with reports.
 3. **Per equipped aircraft**, over its associated rows: ``t0`` = the first one, ``tracked_s``
@@ -73,8 +76,9 @@ import pandas as pd
 from skytrack.analysis.checks import _require_columns, _require_finite, _require_not_null
 from skytrack.analysis.evaluate import CONFIRMED_STATUSES, DEFAULT_GATE_M, _dimension
 from skytrack.analysis.evaluation import _jsonable, _records
-from skytrack.analysis.metrics import _candidate_pairs, cutoff_matching
-from skytrack.analysis.truth import _interpolate_truth, _prepare_truth
+from skytrack.analysis.metrics import _candidate_pairs
+from skytrack.analysis.row_association import associate_rows, smooth_along_tracks
+from skytrack.analysis.truth import _prepare_truth
 
 __all__ = ["IdentificationReport", "identification_report", "STATUSES", "DEFAULT_HOLD_FRACTION",
            "DEFAULT_OFFSET_THRESHOLD_M"]
@@ -182,11 +186,20 @@ def _is_source(source: np.ndarray, names: Sequence[str]) -> np.ndarray:
     return pd.Series(source, dtype=object).isin(list(names)).to_numpy() | pd.isna(source)
 
 
-def _own_addresses(target_ids: np.ndarray, truth: pd.DataFrame, aircraft: pd.DataFrame | None) -> np.ndarray:
-    """Each truth object's own address, None when unknown (module docstring, step 2)."""
+def identification_source_of(source: np.ndarray) -> np.ndarray:
+    """Rows whose label came from identification (not from the aircraft's own Mode S/IFF replies)."""
+    return _is_source(source, IDENTIFICATION_SOURCES)
+
+
+def _own_addresses(target_ids: np.ndarray, truth: pd.DataFrame, aircraft: pd.DataFrame | None,
+                   sent: set[str]) -> np.ndarray:
+    """Each truth object's own address, None when unknown (module docstring, step 2).  A target id
+    of 6 hex digits counts as an address only when some ADS-B report sends it: a simulated id such
+    as "AC0001" is hex too but names nothing."""
     index = pd.Index(target_ids.astype(str))
     ids = _addresses(target_ids)
-    own = np.array([a if a is not None and _HEX_ADDRESS.fullmatch(a) else None for a in ids], dtype=object)
+    own = np.array([a if a is not None and _HEX_ADDRESS.fullmatch(a) and a in sent else None for a in ids],
+                   dtype=object)
     tables = []
     if "icao24" in truth.columns:
         tables.append(truth[["target_id", "icao24"]])
@@ -297,20 +310,6 @@ def _adsb_identities(adsb: pd.DataFrame, prepared, own: np.ndarray, notes: list[
 # --------------------------------------------------------------------------- association
 
 
-def _associate(rows: pd.DataFrame, prepared, axes: list[str], cutoff: float, tolerance: float):
-    """The truth object (code, -1 = none) of every row by :func:`metrics.cutoff_matching` per track
-    time, with what the duplicate check needs: ``(row_target, row_step, row_position, truth_target,
-    truth_step, truth_position)`` (truth of every object that exists at each track time)."""
-    grid, step = np.unique(rows["time"].to_numpy(dtype=float), return_inverse=True)
-    step = step.astype(np.int64).ravel()
-    t_target, t_step, t_pos, _ = _interpolate_truth(prepared, grid, axes, tolerance)
-    position = rows[axes].to_numpy(dtype=float)
-    match = cutoff_matching(t_step, t_pos, step, position, cutoff, 2.0)
-    row_target = np.full(len(rows), -1, np.int64)
-    row_target[match.estimate_index] = t_target[match.truth_index]
-    return row_target, step, position, t_target, t_step, t_pos
-
-
 # --------------------------------------------------------------------------- the report
 
 
@@ -362,12 +361,14 @@ def identification_report(
     _require_finite(tracks, "tracks", axes)
     prepared, truth_notes = _prepare_truth(truth, axes, [])
     notes += [n for n in truth_notes if "visible" not in n]  # visibility is not used here
-    own = _own_addresses(prepared.target_ids, truth, aircraft)
+    own = _own_addresses(prepared.target_ids, truth, aircraft,
+                         {a for a in _addresses(adsb["icao24"].to_numpy(dtype=object)).tolist() if a is not None})
     ads = _adsb_identities(adsb, prepared, own, notes)
 
-    row_target, step, position, t_target, t_step, t_pos = _associate(tracks, prepared, axes, cutoff, time_tolerance_s)
+    row_target, step, position, t_target, t_step, t_pos = associate_rows(tracks, prepared, axes, cutoff, time_tolerance_s)
     times = tracks["time"].to_numpy(dtype=float)
     track_id = tracks["track_id"].to_numpy()
+    row_target = smooth_along_tracks(row_target, track_id, times)
     label = _addresses(tracks["icao24"].to_numpy(dtype=object)) if "icao24" in tracks.columns \
         else np.full(len(tracks), None, dtype=object)
     source = _sources(tracks)
@@ -380,7 +381,10 @@ def identification_report(
     labelled = row_code >= 0
     associated = row_target >= 0
     correct = associated & labelled & (row_code == target_code[np.maximum(row_target, 0)])
-    wrong_associated = associated & labelled & ~correct
+    # a Mode S/IFF label is the aircraft's own reply: wrong only against a known own address
+    no_own = np.array([a is None for a in ads.own], dtype=bool)
+    own_reply_unknown = associated & labelled & ~identification_source_of(source) & no_own[np.maximum(row_target, 0)]
+    wrong_associated = associated & labelled & ~correct & ~own_reply_unknown
     identification_source = _is_source(source, IDENTIFICATION_SOURCES)
     loose = np.flatnonzero(~associated & labelled)
     duplicate = np.zeros(len(tracks), dtype=bool)
@@ -390,9 +394,10 @@ def identification_report(
         duplicate[loose[j[same]]] = True
     loose_mask = ~associated & labelled & ~duplicate
     wrong = wrong_associated | (loose_mask & identification_source)
-    unjudged = loose_mask & ~identification_source
+    unjudged = (loose_mask & ~identification_source) | (own_reply_unknown & ~correct)
     if unjudged.any():
-        notes.append(f"{int(unjudged.sum())} labelled rows of false tracks carry a Mode S/IFF label: not judged")
+        notes.append(f"{int(unjudged.sum())} labelled rows carry a Mode S/IFF label of a false track or of an "
+                     "aircraft whose own address is unknown: not judged")
 
     per_aircraft, adsb_labelled = _per_aircraft(prepared, ads, row_target, times, track_id, correct, wrong, row_code, source,
                                  vocabulary, min_tracked_s, hold_fraction, offset_threshold_m, time_tolerance_s)

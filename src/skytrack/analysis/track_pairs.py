@@ -2,8 +2,8 @@
 
 :func:`score_track_pairs` takes the pairs an identification decided over time (``time``,
 ``track_id`` of system 1, ``other_track`` of system 2) and both systems' tracks tables, finds
-the truth object of every track row (the cut-off matching of :mod:`skytrack.analysis.evaluate`,
-as :mod:`skytrack.analysis.identification` does) and counts:
+the truth object of every track row (:mod:`skytrack.analysis.row_association`: the cut-off
+matching of :mod:`skytrack.analysis.evaluate`, then along each track) and counts:
 
 * pair rows whose two tracks are on one object (correct), on two objects (wrong), or not both
   on an object at that time (unjudged: a false track, or a track that has just lost its object);
@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from skytrack.analysis.evaluate import DEFAULT_GATE_M
-from skytrack.analysis.identification import _associate
+from skytrack.analysis.row_association import associate_rows, smooth_along_tracks
 from skytrack.analysis.truth import _prepare_truth
 
 
@@ -43,7 +43,9 @@ class PairScore:
 def _truth_of_rows(tracks: pd.DataFrame, truth: pd.DataFrame, cutoff: float) -> np.ndarray:
     axes = ["x", "y"]
     prepared, _ = _prepare_truth(truth, axes, [])
-    row_target = _associate(tracks.reset_index(drop=True), prepared, axes, cutoff, 1e-3)[0]
+    rows = tracks.reset_index(drop=True)
+    row_target = associate_rows(rows, prepared, axes, cutoff, 1e-3)[0]
+    row_target = smooth_along_tracks(row_target, rows["track_id"].to_numpy(), rows["time"].to_numpy(float))
     names = np.asarray(prepared.target_ids, dtype=object)
     return np.where(row_target >= 0, names[np.maximum(row_target, 0)], None)
 

@@ -52,7 +52,7 @@ class AdsbIdentificationConfig:
     """process-noise PSD (m²/s³) of the CV identification model: large enough for the radar track's
     filter to follow a 3 g turn between 4-s scans, which is what keeps true pairs through manoeuvres"""
     gate_m: float = 10_000.0
-    horizon_s: float | None = 30.0
+    horizon_s: float | None = 20.0
     p_correct: float = 0.99
     """a new label needs Λ ≤ χ²⁻¹_dof(p_correct)"""
     p_keep: float = 0.9999
@@ -67,7 +67,8 @@ class AdsbIdentificationConfig:
     batch_s: float = 1.0
     report_gate: float | None = 0.9999
     """a plot (or ADS-B report) this improbable under its own track's filter is left out"""
-    recreate_after_s: float = 20.0
+    recreate_after_s: float = 4.0
+    """a dropped pair may be made again after this long (one scan of a 4-s radar)"""
 
     def __post_init__(self):
         if not 0.0 < self.p_correct <= self.p_keep < 1.0:
