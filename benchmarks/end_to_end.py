@@ -79,7 +79,7 @@ def build(folder: Path, plots: int, aircraft: int, piece_s: float, seed: int, co
     folder.mkdir(parents=True, exist_ok=True)
     base = scale_traffic(load_scenario("demo"), aircraft)
     base = dataclasses.replace(base, traffic=dataclasses.replace(base.traffic, start_time_s=(0.0, 0.0)),
-                               duration_s=piece_s, seed=seed)
+                               duration_s=piece_s, seed=seed, adsb=None)  # radar plots only
     parquet_path, csv_path = folder / "plots.parquet", folder / "plots.csv"
     partial = folder / "plots.parquet.partial"
     started = time.perf_counter()

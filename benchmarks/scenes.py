@@ -1,7 +1,7 @@
 """Scene builders shared by the benchmarks: variations of the bundled demo scenario.
 
-Every scene keeps the demo's radar (4 s scan, 250 km, P_D 0.9, SSR), its four scripted
-aircraft and its random-traffic settings (speeds 110-250 m/s, altitudes 1.5-11.5 km, a
+Every scene keeps the demo's radar (4 s scan, 250 km, P_D 0.9, SSR), its scripted aircraft
+(four before issue 9, six since) and its random-traffic settings (speeds 110-250 m/s, altitudes 1.5-11.5 km, a
 quarter manoeuvring), with the random traffic resized and all of it airborne from t = 0.
 
 * ``sparse-N``    N random aircraft spread over the demo annulus (10-200 km), demo clutter.
@@ -28,10 +28,11 @@ BOX_CENTRE_AZIMUTH_DEG = 45.0
 
 
 def scaled_demo(count: int, duration_s: float) -> Scenario:
-    """The demo scenario with ``count`` random aircraft, all airborne from the start."""
+    """The demo scenario with ``count`` random aircraft, all airborne from the start (no ADS-B:
+    the tracker benchmarks time radar plots only)."""
     scenario = scale_traffic(load_scenario("demo"), count)
     traffic = dataclasses.replace(scenario.traffic, start_time_s=(0.0, 0.0))
-    return dataclasses.replace(scenario, traffic=traffic, duration_s=duration_s)
+    return dataclasses.replace(scenario, traffic=traffic, duration_s=duration_s, adsb=None)
 
 
 def with_clutter(scenario: Scenario, clutter_per_scan: float) -> Scenario:
