@@ -4,7 +4,7 @@ What it compares: ``skytrack track PLOTS --sensors sensors.json -o tracks.parque
 option (the default filter: Kalman CV with the manoeuvre switch) and with ``--filter imm``
 (the default model set; ``--imm-args`` adds options), on
 
-* ``demo``: the bundled demo scenario (``skytrack simulate demo``: 76 aircraft over 10
+* ``demo``: the bundled demo scenario (``skytrack simulate demo``: 78 aircraft over 10
   minutes, one 2-D radar, 4 s scan);
 * the windows of role ``report`` of ``benchmarks/vs_stonesoup_windows.py``: ``report-1..3``
   (15 minutes of 40 simulated aircraft, 30 % manoeuvring) and ``swiss-0930``, ``swiss-1120``,
