@@ -1,5 +1,6 @@
-"""ADS-B identification inside a tracking run: radar tracks labelled with the address and callsign
-of the aircraft ADS-B reports for them (issue 9; spec 001 R13 applied to the tracker's output).
+"""Identification inside a tracking run: radar tracks labelled with the address and callsign of the
+aircraft ADS-B reports for them, or with what another radar's (an interrogator's) paired tracks carry
+(issue 9; spec 001 R13 applied to the tracker's output).
 
 :class:`TrackLabeler` sits beside :func:`skytrack.app.run.run_tracking`.  The tracker records
 every plot a confirmed track takes (:meth:`skytrack.tracker.Tracker.record_assignments`: the
@@ -288,7 +289,7 @@ class TrackLabeler:
         from skytrack.identify.sequential import logistic
 
         log_bf = (-0.5 * pairs.statistic[rows]
-                  - 0.5 * np.linalg.slogdet(2 * np.pi * ident._covariance_sum(rows, t))[1] - math.log(beta))
+                  - 0.5 * np.linalg.slogdet(2 * np.pi * ident.covariance_sum(rows, t))[1] - math.log(beta))
         p_same = logistic(log_bf)
         first = [ident.track_ids[i] for i in pairs.first[rows]]
         second = [ident.track_ids[j] for j in pairs.second[rows]]

@@ -346,7 +346,7 @@ class TrackIdentifier:
         return x[:, :nd] + x[:, nd:2 * nd] * (t - self.tracks.t[rows])[:, None]
 
     # ------------------------------------------------------------------ decisions
-    def pair_table(self, t: float | None = None) -> PairTable:
+    def pair_table(self, t: float | None = None) -> tuple[PairTable, np.ndarray]:
         """Live pairs of live tracks with Λ, dof, threshold, allowed flag and cost (R13 step 4)."""
         config = self.config
         pairs = self.pairs
@@ -354,7 +354,7 @@ class TrackIdentifier:
         live = live[self.track_alive[pairs.first[live]] & self.track_alive[pairs.second[live]]]
         statistic, dof = pairs.statistic[live], pairs.dof[live]
         dof_min = self.model.n if config.dof_min is None else config.dof_min
-        covariance = self._covariance_sum(live, t) if config.threshold.needs_covariance else None
+        covariance = self.covariance_sum(live, t) if config.threshold.needs_covariance else None
         h = config.threshold.value(dof, covariance_sum=covariance)
         if config.cost == "np":
             allowed = (dof >= dof_min) & (statistic <= h)
@@ -365,7 +365,8 @@ class TrackIdentifier:
             cost = -log_bf
         return PairTable(pairs.first[live], pairs.second[live], statistic, dof, h, allowed, cost), live
 
-    def _covariance_sum(self, live: np.ndarray, t: float | None) -> np.ndarray:
+    def covariance_sum(self, live: np.ndarray, t: float | None = None) -> np.ndarray:
+        """P_i + P_j of pairs ``live`` at one common time (their later report, or ``t``): R5's and R6's S."""
         first, second = self.pairs.first[live], self.pairs.second[live]
         common = np.maximum(self.tracks.t[first], self.tracks.t[second]) if t is None else np.full(len(live), t)
         return self.tracks.estimate_at(first, common)[1] + self.tracks.estimate_at(second, common)[1]
@@ -376,7 +377,7 @@ class TrackIdentifier:
         if beta is None:
             raise ValueError("the posterior needs object_density (beta > 0); it has no default (spec 001 R6)")
         prior = self.config.prior_same
-        _, logdet = np.linalg.slogdet(2.0 * np.pi * self._covariance_sum(live, t))
+        _, logdet = np.linalg.slogdet(2.0 * np.pi * self.covariance_sum(live, t))
         return (np.log(prior) - np.log1p(-prior) - 0.5 * self.pairs.statistic[live] - 0.5 * logdet
                 - np.log(beta))
 
