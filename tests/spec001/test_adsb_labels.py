@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from skytrack.app.identification import AdsbIdentificationConfig, TrackLabeler, adsb_system
+from skytrack.app.identification import AdsbIdentificationConfig, TrackLabeler
+from skytrack.app.other_systems import adsb_system
 from skytrack.app.run import run_tracking
 from skytrack.io import read_tracks, write_adsb, write_plots, write_sensors, write_truth
 from skytrack.io.identity_events import identity_events_path, read_identity_events
@@ -115,7 +116,8 @@ def test_a_mode_s_address_is_not_overwritten():
                        "position": np.column_stack([t * 100.0, np.zeros(len(t)), np.zeros(len(t))]),
                        "covariance": np.broadcast_to(np.diag([50.0 ** 2, 50.0 ** 2, 1.0]), (len(t), 3, 3)).copy()})
     rows = pa.table({"time": t + 0.1, "track_id": np.full(len(t), 7), "icao24": ["fff000"] * len(t),
-                     "callsign": pa.nulls(len(t), pa.string()), "identity_source": ["mode_s"] * len(t),
+                     "callsign": pa.nulls(len(t), pa.string()), "mode3a": pa.nulls(len(t), pa.string()),
+                     "iff": pa.nulls(len(t), pa.string()), "identity_source": ["mode_s"] * len(t),
                      "identity_p": np.full(len(t), 0.9)})
     table, _ = labeler.label(rows, None)
     assert set(table.column("icao24").to_pylist()) == {"fff000"}

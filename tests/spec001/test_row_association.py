@@ -25,3 +25,12 @@ def test_a_false_track_stays_without_object_and_a_handover_is_kept():
     shuffle = np.random.default_rng(0).permutation(16)
     np.testing.assert_array_equal(smooth_along_tracks(target[shuffle], track[shuffle], time[shuffle]),
                                   smoothed[shuffle])
+
+
+def test_last_followed_carries_each_tracks_object_forward():
+    from skytrack.analysis.row_association import last_followed
+
+    track = np.array([1, 1, 1, 1, 2, 2, 2])
+    time = np.array([0.0, 1, 2, 3, 0, 1, 2])
+    target = np.array([-1, 4, -1, -1, -1, -1, 7])
+    np.testing.assert_array_equal(last_followed(target, track, time), [-1, 4, 4, 4, -1, -1, 7])

@@ -49,7 +49,9 @@ Steps:
    address known, has no right label).  A labelled row associated to no object is wrong when
    its label came from identification (``identity_source`` ``adsb`` or ``radar``, null or
    absent), except a *duplicate*: an object within the gate at that instant has that label
-   (a second track on the same aircraft is not a wrong identity).  Mode S/IFF labels of
+   (a second track on the same aircraft is not a wrong identity), and a track that *outlived*
+   its aircraft: the label is that of the object the track last followed (a track coasting a
+   scan or two after its aircraft's recording ends still names the aircraft it followed).  Mode S/IFF labels of
    unassociated rows are not judged (counted).  Wrong rows are grouped by (track, label,
    associated object); the aircraft affected are the associated objects and the owners of
    the wrong addresses.
@@ -77,7 +79,12 @@ from skytrack.analysis.checks import _require_columns, _require_finite, _require
 from skytrack.analysis.evaluate import CONFIRMED_STATUSES, DEFAULT_GATE_M, _dimension
 from skytrack.analysis.evaluation import _jsonable, _records
 from skytrack.analysis.metrics import _candidate_pairs
-from skytrack.analysis.row_association import associate_rows, smooth_along_tracks
+from skytrack.analysis.row_association import (
+    associate_rows,
+    existing_objects,
+    last_followed,
+    smooth_along_tracks,
+)
 from skytrack.analysis.truth import _prepare_truth
 
 __all__ = ["IdentificationReport", "identification_report", "STATUSES", "DEFAULT_HOLD_FRACTION",
@@ -368,7 +375,8 @@ def identification_report(
     row_target, step, position, t_target, t_step, t_pos = associate_rows(tracks, prepared, axes, cutoff, time_tolerance_s)
     times = tracks["time"].to_numpy(dtype=float)
     track_id = tracks["track_id"].to_numpy()
-    row_target = smooth_along_tracks(row_target, track_id, times)
+    row_target = existing_objects(step, smooth_along_tracks(row_target, track_id, times), t_step, t_target)
+    last_object = last_followed(row_target, track_id, times)
     label = _addresses(tracks["icao24"].to_numpy(dtype=object)) if "icao24" in tracks.columns \
         else np.full(len(tracks), None, dtype=object)
     source = _sources(tracks)
@@ -392,7 +400,10 @@ def identification_report(
         i, j, _ = _candidate_pairs(t_step, t_pos, step[loose], position[loose], cutoff)
         same = target_code[t_target[i]] == row_code[loose][j]
         duplicate[loose[j[same]]] = True
-    loose_mask = ~associated & labelled & ~duplicate
+    # a track that outlives its aircraft by a few instants still names the aircraft it followed
+    outlived = ~associated & labelled & ~duplicate & (row_code == target_code[np.maximum(last_object, 0)]) \
+        & (last_object >= 0)
+    loose_mask = ~associated & labelled & ~duplicate & ~outlived
     wrong = wrong_associated | (loose_mask & identification_source)
     unjudged = (loose_mask & ~identification_source) | (own_reply_unknown & ~correct)
     if unjudged.any():

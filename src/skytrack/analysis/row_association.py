@@ -58,3 +58,27 @@ def smooth_along_tracks(row_target: np.ndarray, track_id: np.ndarray, time: np.n
     smoothed = np.empty_like(row_target)
     smoothed[order] = best
     return smoothed
+
+
+def existing_objects(row_step: np.ndarray, row_target: np.ndarray, t_step: np.ndarray,
+                     t_target: np.ndarray) -> np.ndarray:
+    """``row_target`` where that object exists at the row's instant (the truth of :func:`associate_rows`
+    has it at that step), else -1: smoothing must not carry a track onto an object that has ended."""
+    base = int(max(row_target.max(initial=-1), t_target.max(initial=-1))) + 2
+    present = np.isin(row_step * base + row_target, t_step.astype(np.int64) * base + t_target)
+    return np.where((row_target >= 0) & present, row_target, -1)
+
+
+def last_followed(row_target: np.ndarray, track_id: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """The object each row's track was last associated to, at this row or before it (-1: none yet)."""
+    order = np.lexsort((time, track_id))
+    ordered, track = row_target[order], track_id[order]
+    position = np.where(ordered >= 0, np.arange(len(order)), -1)
+    start = np.r_[True, track[1:] != track[:-1]] if len(order) else np.zeros(0, dtype=bool)
+    # the latest associated position so far, restarted at each track's first row
+    group_start = np.maximum.accumulate(np.where(start, np.arange(len(order)), 0))
+    latest = np.maximum.accumulate(np.where(position >= group_start, position, -1))
+    latest = np.where(latest >= group_start, latest, -1)
+    result = np.empty_like(row_target)
+    result[order] = np.where(latest >= 0, ordered[np.maximum(latest, 0)], -1)
+    return result

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from skytrack.analysis.evaluate import DEFAULT_GATE_M
-from skytrack.analysis.row_association import associate_rows, smooth_along_tracks
+from skytrack.analysis.row_association import associate_rows, existing_objects, smooth_along_tracks
 from skytrack.analysis.truth import _prepare_truth
 
 
@@ -44,8 +44,9 @@ def _truth_of_rows(tracks: pd.DataFrame, truth: pd.DataFrame, cutoff: float) -> 
     axes = ["x", "y"]
     prepared, _ = _prepare_truth(truth, axes, [])
     rows = tracks.reset_index(drop=True)
-    row_target = associate_rows(rows, prepared, axes, cutoff, 1e-3)[0]
+    row_target, step, _, t_target, t_step, _ = associate_rows(rows, prepared, axes, cutoff, 1e-3)
     row_target = smooth_along_tracks(row_target, rows["track_id"].to_numpy(), rows["time"].to_numpy(float))
+    row_target = existing_objects(step, row_target, t_step, t_target)
     names = np.asarray(prepared.target_ids, dtype=object)
     return np.where(row_target >= 0, names[np.maximum(row_target, 0)], None)
 

@@ -10,7 +10,9 @@ instant of the tracks table the :class:`~skytrack.identify.identifier.TrackIdent
 every report up to that instant and the global assignment (R13 step 4) decides; a track is
 labelled when
 
-* its pair with the ADS-B track is assigned (Λ ≤ h = χ²⁻¹_dof(``p_correct``), dof ≥ n),
+* its pair with the ADS-B track is assigned (Λ ≤ h = χ²⁻¹_dof(``p_correct``), dof ≥ n; a label
+  is kept, or taken back within ``relabel_s``, while Λ ≤ χ²⁻¹_dof(``p_keep``)),
+* the aircraft has reported within ``silent_after`` of its typical report intervals,
 * the pair has taken at least ``min_updates`` reports since it was made (a fresh pair's Λ₀ is
   one snapshot of the two track states), and
 * with ``unique`` (default), neither track has another pair that also passes the test after as
@@ -38,11 +40,12 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from skytrack.app.other_systems import OtherSystem
 from skytrack.identify.identifier import IdentifierConfig, TrackIdentifier
 from skytrack.identify.threshold import Threshold
 
-#: sigma (m, per axis) of ADS-B reports that give neither sigma_m nor a NACp
-DEFAULT_ADSB_SIGMA_M = 40.0
+#: identity fields a label sets (the first two) or fills when the track shows none (the last two)
+LABEL_FIELDS = ("icao24", "callsign", "mode3a", "iff")
 
 
 @dataclass(frozen=True)
@@ -61,7 +64,8 @@ class AdsbIdentificationConfig:
     min_updates: int = 8
     unique: bool = True
     stale_s: float = 30.0
-    """an ADS-B address silent this long ends its track (its pairs die)"""
+    """a track (of either system) silent this long ends: its pairs die (a radar track that misses a
+    few scans in a row keeps its pairs)"""
     fuse: bool = False
     ground_speed_mps: float = 300.0
     """radius of the disc of ground velocities in the object density β of ``identity_p``"""
@@ -70,6 +74,12 @@ class AdsbIdentificationConfig:
     """a plot (or ADS-B report) this improbable under its own track's filter is left out"""
     recreate_after_s: float = 4.0
     """a dropped pair may be made again after this long (one scan of a 4-s radar)"""
+    relabel_s: float = 60.0
+    """a track labelled by a pair within this long takes the label back at the keep threshold
+    (a scan or two of doubt after a coast should not cost a minute without a label)"""
+    silent_after: float = 5.0
+    """a label needs the other system's track to have reported within this many of its typical
+    report intervals (the median gap between its reports): no word from the aircraft, no label"""
 
     def __post_init__(self):
         if not 0.0 < self.p_correct <= self.p_keep < 1.0:
@@ -106,65 +116,9 @@ class LabelStats:
                 "mode_s_conflicts": self.mode_s_conflicts, "label_changes": self.label_changes}
 
 
-@dataclass(frozen=True)
-class OtherSystem:
-    """The second observation system's reports (spec 001's ξ): one row per report."""
-
-    source: str
-    """``adsb``, ``radar`` or ``iff``: the ``identity_source`` of the labels it gives"""
-    time: np.ndarray
-    key: np.ndarray
-    """track of the report: the ADS-B address, or the other radar's track id (as text)"""
-    z: np.ndarray
-    """horizontal positions ``[N, 2]`` in the common frame"""
-    V: np.ndarray
-    """their covariances ``[N, 2, 2]``"""
-    icao24: np.ndarray
-    """address the report names (null when unknown)"""
-    callsign: np.ndarray
-
-    @property
-    def keys(self) -> int:
-        return len(np.unique(self.key))
-
-
-def _text(values) -> np.ndarray:
-    series = pd.Series(values, dtype=object)
-    return series.where(series.notna(), None).to_numpy(object)
-
-
-def adsb_system(adsb: pd.DataFrame) -> OtherSystem:
-    """ADS-B reports (:func:`skytrack.io.read_adsb`) as the other system, tracked per address."""
-    adsb = adsb.sort_values("time", kind="stable")
-    sigma = adsb["sigma_m"].to_numpy(float) if "sigma_m" in adsb else np.full(len(adsb), np.nan)
-    sigma = np.where(np.isfinite(sigma), sigma, DEFAULT_ADSB_SIGMA_M)
-    address = adsb["icao24"].astype(str).to_numpy(object)
-    callsign = adsb["callsign"] if "callsign" in adsb else [None] * len(adsb)
-    return OtherSystem("adsb", adsb["time"].to_numpy(float), address, adsb[["x", "y"]].to_numpy(float),
-                       sigma[:, None, None] ** 2 * np.eye(2), address, _text(callsign))
-
-
-def track_system(reports: pd.DataFrame, tracks: pd.DataFrame | None, source: str = "radar") -> OtherSystem:
-    """Another radar's (or an interrogator's) track reports (:func:`skytrack.io.read_track_reports`)
-    as the other system; each report names the identity its track carried at that time."""
-    reports = reports.sort_values("time", kind="stable").reset_index(drop=True)
-    V = np.empty((len(reports), 2, 2))
-    V[:, 0, 0], V[:, 1, 1] = reports["var_x"], reports["var_y"]
-    V[:, 0, 1] = V[:, 1, 0] = reports["cov_xy"]
-    icao24 = callsign = np.full(len(reports), None, dtype=object)
-    if tracks is not None and len(tracks) and len(reports):
-        labels = tracks[["time", "track_id", "icao24", "callsign"]].sort_values("time", kind="stable")
-        joined = pd.merge_asof(reports[["time", "track_id"]].reset_index(), labels, on="time", by="track_id",
-                               direction="backward").sort_values("index")
-        icao24, callsign = _text(joined["icao24"]), _text(joined["callsign"])
-    key = reports["track_id"].astype(np.int64).astype(str).to_numpy(object)
-    return OtherSystem(source, reports["time"].to_numpy(float), key, reports[["x", "y"]].to_numpy(float), V,
-                       icao24, callsign)
-
-
 class TrackLabeler:
     """Labels tracks-table chunks with the identities another system's tracks carry, as the tracker
-    produces them (ADS-B: :func:`adsb_system`; another radar or an interrogator: :func:`track_system`)."""
+    produces them (:mod:`skytrack.app.other_systems`: ADS-B, another radar or an interrogator)."""
 
     def __init__(self, other: OtherSystem, covered_area_m2: float, config: AdsbIdentificationConfig | None = None):
         self.config = config = config if config is not None else AdsbIdentificationConfig()
@@ -179,9 +133,12 @@ class TrackLabeler:
         self.ended: dict[int, set] = {1: set(), 2: set()}
         self.covered_area_m2 = covered_area_m2
         self.pending = None
-        self.labels: dict[int, tuple] = {}  # track id -> (icao24, callsign) last written
+        self.labels: dict[int, tuple] = {}  # track id -> the LABEL_FIELDS values last written
+        self.held: dict[int, tuple] = {}  # track id -> (other track key, last time it labelled the track)
         self.pairs_log: list[tuple] = []
         self.stats = LabelStats(adsb_reports=len(other.time), adsb_addresses=other.keys)
+        self.other_interval = typical_interval(other.key, other.time, 1.0)
+        self.silent_s = config.silent_after * self.other_interval
 
     # ------------------------------------------------------------------ reports
     def add_radar(self, assignments: dict[str, np.ndarray] | None) -> None:
@@ -215,9 +172,9 @@ class TrackLabeler:
             keep = ~(self.pending["time"] <= t)
             self.pending = {k: v[keep] for k, v in self.pending.items()}
         adsb_ids = other.key[a]
-        for key, address, callsign in zip(adsb_ids, other.icao24[a], other.callsign[a]):
-            if address is not None or callsign is not None:
-                self.label_of[key] = (address, callsign)
+        for key, *identity in zip(adsb_ids, other.icao24[a], other.callsign[a], other.mode3a[a], other.iff[a]):
+            if any(v is not None for v in identity):
+                self.label_of[key] = tuple(identity)
         n_adsb = len(adsb_ids)
         n_radar = 0 if radar_t is None else len(radar_t)
         if n_adsb + n_radar == 0:
@@ -260,8 +217,9 @@ class TrackLabeler:
                     del heard[i]
 
     # ------------------------------------------------------------------ decisions
-    def _decide(self, t: float) -> dict[int, tuple[str, float, int]]:
-        """Radar track id -> (icao24, identity_p, pair row) of the tracks labelled at ``t``."""
+    def _decide(self, t: float, shown: set[int]) -> dict[int, tuple[str, float, int]]:
+        """Radar track id -> (icao24, identity_p, pair row) of the tracks labelled at ``t``; ``shown``
+        are the radar tracks the tracks table reports at ``t``."""
         ident = self.identifier
         result = ident.assign()
         if len(result.pair) == 0:
@@ -270,17 +228,24 @@ class TrackLabeler:
         ok = pairs.updates[result.pair] >= self.config.min_updates
         if self.config.unique:
             table, live = ident.pair_table()
-            # a pair younger than min_updates has not yet shown it fits: it cannot make a label ambiguous
-            passing = table.allowed & (pairs.updates[live] >= self.config.min_updates)
+            # a pair younger than min_updates has not yet shown it fits, and a radar track the tracker
+            # no longer reports (deleted, or coasting past reporting) is not in the picture: neither
+            # makes a label ambiguous
+            radar_shown = np.array([int(ident.track_ids[i].split(":")[1]) in shown for i in table.first], dtype=bool)
+            passing = table.allowed & (pairs.updates[live] >= self.config.min_updates) & radar_shown
             count_first = np.bincount(table.first[passing], minlength=len(ident.track_ids))
             count_second = np.bincount(table.second[passing], minlength=len(ident.track_ids))
             ok &= (count_first[pairs.first[result.pair]] == 1) & (count_second[pairs.second[result.pair]] == 1)
         first = [ident.track_ids[i] for i in pairs.first[result.pair]]
         second = [ident.track_ids[j] for j in pairs.second[result.pair]]
-        holding = np.array([self.labels.get(int(f.split(":")[1]), (None,))[0] == a.split(":")[1]
-                            for f, a in zip(first, second)], dtype=bool)
+        # a pair that labelled its track within relabel_s holds: Λ ≤ the keep threshold is enough
+        held = [self.held.get(int(f.split(":")[1]), (None, -np.inf)) for f in first]
+        holding = np.array([key == a.split(":")[1] and t - when <= self.config.relabel_s
+                            for (key, when), a in zip(held, second)], dtype=bool)
         giving = Threshold(p_correct=self.config.p_correct).value(pairs.dof[result.pair])
         ok &= holding | (pairs.statistic[result.pair] <= giving)
+        heard = np.array([self.other_heard.get(a.split(":")[1], -np.inf) for a in second])
+        ok &= t - heard <= self.silent_s
         rows = result.pair[ok]
         if len(rows) == 0:
             return {}
@@ -301,68 +266,92 @@ class TrackLabeler:
         self.add_radar(assignments)
         if table is None or table.num_rows == 0:
             return table, None
-        frame = table.select(["time", "track_id", "icao24", "callsign", "identity_source", "identity_p"]).to_pandas()
-        icao24, callsign, source = (frame[name].astype(object).where(frame[name].notna(), None).to_numpy(object).copy()
-                                    for name in ("icao24", "callsign", "identity_source"))
-        probability = frame["identity_p"].to_numpy(float).copy()
+        frame = table.select(["time", "track_id", *LABEL_FIELDS, "identity_source", "identity_p"]).to_pandas()
+        value = {name: frame[name].astype(object).where(frame[name].notna(), None).to_numpy(object).copy()
+                 for name in (*LABEL_FIELDS, "identity_source")}
+        source, probability = value["identity_source"], frame["identity_p"].to_numpy(float).copy()
         fused = _FusedRows(table.num_rows) if self.config.fuse else None
         events = []
         times = frame["time"].to_numpy(float)
         for t in np.unique(times):
             at = np.flatnonzero(times == t)
             self._advance(float(t))
-            track_ids = frame["track_id"].to_numpy()[at]
             self._end_stale(float(t))
-            decided = self._decide(float(t))
-            name = self.other.source
+            decided = self._decide(float(t), set(frame["track_id"].to_numpy()[at].tolist()))
             fused_now: dict[int, int] = {}
-            for row, track in zip(at, track_ids.tolist()):
+            for row, track in zip(at, frame["track_id"].to_numpy()[at].tolist()):
                 label = decided.get(track)
                 named = None
                 if label is not None:
-                    named = self.label_of.get(label[0], (label[0] if name == "adsb" else None, None))
+                    named = self.label_of.get(label[0], (label[0] if self.other.source == "adsb" else None,
+                                                         None, None, None))
                     self.pairs_log.append((float(t), track, label[0], label[1], label[2]))
-                    if fused is not None:
-                        fused_now[row] = label[2]
-                if source[row] == "mode_s":
-                    if named is not None and named[0] == icao24[row]:
-                        callsign[row] = named[1]
-                    elif named is not None and named[0] is not None:
-                        self.stats.mode_s_conflicts += 1
-                    new = (icao24[row], callsign[row])
-                elif named is not None and (named[0] is not None or named[1] is not None):
-                    icao24[row], callsign[row] = named
-                    source[row], probability[row] = name, label[1]
-                    new = named
-                else:
-                    new = (None, None) if source[row] in (None, name) else (icao24[row], callsign[row])
-                if label is not None:
+                    self.held[track] = (label[0], float(t))
                     self.stats.labelled_rows += 1
                     self.stats.labelled_tracks.add(track)
-                old = self.labels.get(track, (None, None))
-                if source[row] != "mode_s" and new != old:
-                    for field_name, before, after in (("icao24", old[0], new[0]), ("callsign", old[1], new[1])):
-                        if before != after:
-                            events.append((float(t), track, field_name, before, after, name,
-                                           probability[row] if label is not None else None))
-                    self.stats.label_changes += 1
-                self.labels[track] = new
+                    if fused is not None:
+                        fused_now[row] = label[2]
+                new = self._label_row(row, named, label, value, source, probability)
+                events += self._events(float(t), track, new, probability[row] if label is not None else None)
             if fused_now:
                 # the pairs' joint estimates now, before later reports move them on (R14)
                 rows = np.fromiter(fused_now.keys(), np.int64)
                 x, P = self.identifier.pairs.joint.estimate_at(np.fromiter(fused_now.values(), np.int64),
                                                                np.full(len(rows), float(t)))
                 fused[rows] = (x, P)
-        table = _replace(table, {"icao24": pa.array(icao24, pa.string()), "callsign": pa.array(callsign, pa.string()),
+        table = _replace(table, {**{name: pa.array(value[name], pa.string()) for name in LABEL_FIELDS},
                                  "identity_source": pa.array(source, pa.string()),
                                  "identity_p": pa.array(probability, pa.float64())})
         if fused is not None and fused.rows.any():
             table = fused.apply(table)
         return table, _events_table(events)
 
+    def _label_row(self, row: int, named, label, value: dict, source, probability) -> tuple:
+        """Write one row's label; returns the values this labeller gave it, per :data:`LABEL_FIELDS`."""
+        name = self.other.source
+        icao24, callsign, mode3a, iff = (value[f] for f in LABEL_FIELDS)
+        if source[row] == "mode_s":  # the track's own Mode S address stays
+            if named is not None and named[0] == icao24[row]:
+                callsign[row] = named[1]
+            elif named is not None and named[0] is not None:
+                self.stats.mode_s_conflicts += 1
+            given = [None, callsign[row] if named is not None and named[0] == icao24[row] else None]
+        elif named is not None and (named[0] is not None or named[1] is not None):
+            icao24[row], callsign[row] = named[0], named[1]
+            source[row], probability[row] = name, label[1]
+            given = [named[0], named[1]]
+        else:
+            given = [None, None]
+        for k, column in ((2, mode3a), (3, iff)):  # filled only where the track's own replies show none
+            filled = named is not None and named[k] is not None and column[row] is None
+            if filled:
+                column[row] = named[k]
+                if source[row] is None:
+                    source[row], probability[row] = name, label[1]
+            given.append(named[k] if filled else None)
+        return tuple(given)
+
+    def _events(self, t: float, track: int, new: tuple, probability) -> list[tuple]:
+        """Identity events of the values this labeller gave a track (a Mode S track's address is the
+        tracker's, not ours: it has its own events)."""
+        old = self.labels.get(track, (None,) * len(LABEL_FIELDS))
+        self.labels[track] = new
+        changed = [(field, before, after) for field, before, after in zip(LABEL_FIELDS, old, new)
+                   if before != after and (field in ("icao24", "callsign") or after is not None)]
+        if changed:
+            self.stats.label_changes += 1
+        return [(t, track, field, before, after, self.other.source, probability) for field, before, after in changed]
+
     def pairs_table(self) -> pd.DataFrame:
         """Every (time, track, other track, P(same), pair) the labelling decided, for ``identify tracks``."""
         return pd.DataFrame(self.pairs_log, columns=["time", "track_id", "other_track", "identity_p", "pair"])
+
+def typical_interval(key: np.ndarray, time: np.ndarray, default: float | None) -> float | None:
+    """The median gap between consecutive reports of the same track (``default`` when there is none)."""
+    gaps = pd.DataFrame({"key": key, "time": time}).groupby("key")["time"].diff().dropna()
+    gaps = gaps[gaps > 0]
+    return float(gaps.median()) if len(gaps) else default
+
 
 class _FusedRows:
     """The joint estimates (R14 ``fusion="joint"``) of the identified rows of one chunk."""
@@ -401,13 +390,3 @@ def _events_table(events: list[tuple]) -> pa.Table | None:
 
     columns = list(zip(*events))
     return pa.table([pa.array(c, type=f.type) for c, f in zip(columns, EVENT_ARROW_SCHEMA)], schema=EVENT_ARROW_SCHEMA)
-
-
-def covered_area(sensor_set, adsb: pd.DataFrame) -> float:
-    """The area (m²) the object density of ``identity_p`` spreads over: the radars' coverage discs,
-    or, without ranges, the ADS-B reports' bounding box."""
-    radii = [] if sensor_set is None else [s.max_range_m for s in sensor_set.sensors if s.is_radar and s.max_range_m]
-    if radii:
-        return float(sum(math.pi * r ** 2 for r in radii))
-    span = adsb[["x", "y"]].max() - adsb[["x", "y"]].min()
-    return float(max(span["x"], 1e4) * max(span["y"], 1e4))

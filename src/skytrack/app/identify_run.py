@@ -24,7 +24,8 @@ from pathlib import Path
 import pandas as pd
 import pyarrow as pa
 
-from skytrack.app.identification import AdsbIdentificationConfig, TrackLabeler, adsb_system, covered_area, track_system
+from skytrack.app.identification import AdsbIdentificationConfig, TrackLabeler
+from skytrack.app.other_systems import adsb_system, covered_area, track_system
 
 SOURCES = ("radar", "iff")
 #: spec 001 R1: what the radar reports are, said in every summary

@@ -216,7 +216,8 @@ def _sensor_subset(sensor_set, names: list[str]):
 
 
 def _adsb_labeler(adsb_path, sensor_set, identification, config):
-    from skytrack.app.identification import DEFAULT_ADSB_SIGMA_M, TrackLabeler, adsb_system, covered_area
+    from skytrack.app.identification import TrackLabeler
+    from skytrack.app.other_systems import DEFAULT_ADSB_SIGMA_M, adsb_system, covered_area
     from skytrack.io import read_adsb
 
     if config.output.full_covariance and identification is not None and identification.fuse:
