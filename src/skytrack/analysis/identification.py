@@ -35,8 +35,9 @@ Steps:
 3. **Per equipped aircraft**, over its associated rows: ``t0`` = the first one, ``tracked_s``
    = last − first, ``first_correct_s`` = the first carrying its correct label,
    ``time_to_identify_s = first_correct_s − t0``; with ``t1 = t0 + min_tracked_s``,
-   ``correct_fraction_after`` = the fraction of its associated rows at ``t ≥ t1`` that carry the
-   correct label.  Status, the first rule that applies:
+   ``correct_fraction_after`` = the fraction of its instants at ``t ≥ t1`` at which one of its
+   tracks carries the correct label (a duplicate track carrying it counts: the aircraft's
+   identity is on the picture).  Status, the first rule that applies:
 
    - ``not tracked long enough``: ``tracked_s < min_tracked_s`` (never tracked included);
    - ``not identified``: no associated row ever carries the correct label;
@@ -396,10 +397,13 @@ def identification_report(
     identification_source = _is_source(source, IDENTIFICATION_SOURCES)
     loose = np.flatnonzero(~associated & labelled)
     duplicate = np.zeros(len(tracks), dtype=bool)
+    served = np.zeros(len(tracks), dtype=bool)  # the aircraft's label is on a duplicate track at that instant
     if loose.size and t_step.size:
         i, j, _ = _candidate_pairs(t_step, t_pos, step[loose], position[loose], cutoff)
         same = target_code[t_target[i]] == row_code[loose][j]
         duplicate[loose[j[same]]] = True
+        width = int(step.max(initial=0)) + 1
+        served = associated & np.isin(row_target * width + step, t_target[i[same]] * width + step[loose[j[same]]])
     # a track that outlives its aircraft by a few instants still names the aircraft it followed
     outlived = ~associated & labelled & ~duplicate & (row_code == target_code[np.maximum(last_object, 0)]) \
         & (last_object >= 0)
@@ -410,7 +414,8 @@ def identification_report(
         notes.append(f"{int(unjudged.sum())} labelled rows carry a Mode S/IFF label of a false track or of an "
                      "aircraft whose own address is unknown: not judged")
 
-    per_aircraft, adsb_labelled = _per_aircraft(prepared, ads, row_target, times, track_id, correct, wrong, row_code, source,
+    per_aircraft, adsb_labelled = _per_aircraft(prepared, ads, row_target, times, track_id, correct | served, wrong,
+                                                row_code, source,
                                  vocabulary, min_tracked_s, hold_fraction, offset_threshold_m, time_tolerance_s)
     wrong_labels = _wrong_label_table(tracks, label, source, row_target, prepared, ads, wrong)
     faulty = per_aircraft.loc[per_aircraft["adsb_fault"].notna(),
@@ -445,9 +450,13 @@ def _per_aircraft(prepared, ads: _Adsb, row_target, times, track_id, correct, wr
     first_correct = np.full(n_targets, inf)
     np.minimum.at(first_correct, target[correct[on]], t[correct[on]])
     deadline = first + min_tracked_s
-    after = t >= deadline[target] - tolerance
-    n_after = np.bincount(target[after], minlength=n_targets)
-    correct_after = np.bincount(target[after & correct[on]], minlength=n_targets)
+    # per instant: the aircraft is labelled when any of its tracks there carries its label
+    instants = pd.DataFrame({"target": target, "t": t, "correct": correct[on]}).groupby(
+        ["target", "t"], sort=False)["correct"].any().reset_index()
+    i_target, i_correct = instants["target"].to_numpy(np.int64), instants["correct"].to_numpy(bool)
+    after = instants["t"].to_numpy(float) >= deadline[i_target] - tolerance
+    n_after = np.bincount(i_target[after], minlength=n_targets)
+    correct_after = np.bincount(i_target[after & i_correct], minlength=n_targets)
     n_rows = np.bincount(target, minlength=n_targets)
     wrong_rows = np.bincount(target[wrong[on]], minlength=n_targets)
     pairs = pd.DataFrame({"target": target, "track": track_id[on]}).drop_duplicates()

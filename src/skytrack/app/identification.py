@@ -219,7 +219,7 @@ class TrackLabeler:
     # ------------------------------------------------------------------ decisions
     def _decide(self, t: float, shown: set[int]) -> dict[int, tuple[str, float, int]]:
         """Radar track id -> (icao24, identity_p, pair row) of the tracks labelled at ``t``; ``shown``
-        are the radar tracks the tracks table reports at ``t``."""
+        are the radar tracks the tracks table reports confirmed (with a plot on their last scan) at ``t``."""
         ident = self.identifier
         result = ident.assign()
         if len(result.pair) == 0:
@@ -235,7 +235,8 @@ class TrackLabeler:
             passing = table.allowed & (pairs.updates[live] >= self.config.min_updates) & radar_shown
             count_first = np.bincount(table.first[passing], minlength=len(ident.track_ids))
             count_second = np.bincount(table.second[passing], minlength=len(ident.track_ids))
-            ok &= (count_first[pairs.first[result.pair]] == 1) & (count_second[pairs.second[result.pair]] == 1)
+            own = np.isin(result.pair, live[passing]).astype(np.int64)  # the chosen pair itself
+            ok &= (count_first[pairs.first[result.pair]] - own == 0) & (count_second[pairs.second[result.pair]] - own == 0)
         first = [ident.track_ids[i] for i in pairs.first[result.pair]]
         second = [ident.track_ids[j] for j in pairs.second[result.pair]]
         # a pair that labelled its track within relabel_s holds: Λ ≤ the keep threshold is enough
@@ -266,7 +267,8 @@ class TrackLabeler:
         self.add_radar(assignments)
         if table is None or table.num_rows == 0:
             return table, None
-        frame = table.select(["time", "track_id", *LABEL_FIELDS, "identity_source", "identity_p"]).to_pandas()
+        frame = table.select(["time", "track_id", "status", *LABEL_FIELDS, "identity_source", "identity_p"]).to_pandas()
+        status = frame["status"].astype(object).to_numpy()
         value = {name: frame[name].astype(object).where(frame[name].notna(), None).to_numpy(object).copy()
                  for name in (*LABEL_FIELDS, "identity_source")}
         source, probability = value["identity_source"], frame["identity_p"].to_numpy(float).copy()
@@ -277,7 +279,9 @@ class TrackLabeler:
             at = np.flatnonzero(times == t)
             self._advance(float(t))
             self._end_stale(float(t))
-            decided = self._decide(float(t), set(frame["track_id"].to_numpy()[at].tolist()))
+            # a coasting track (no plot on its last scan) does not make its confirmed neighbour's label ambiguous
+            confirmed = at[status[at] == "confirmed"]
+            decided = self._decide(float(t), set(frame["track_id"].to_numpy()[confirmed].tolist()))
             fused_now: dict[int, int] = {}
             for row, track in zip(at, frame["track_id"].to_numpy()[at].tolist()):
                 label = decided.get(track)
