@@ -115,7 +115,8 @@ def test_a_mode_s_address_is_not_overwritten():
     labeler.add_radar({"track_id": np.full(len(t), 7), "time": t,
                        "position": np.column_stack([t * 100.0, np.zeros(len(t)), np.zeros(len(t))]),
                        "covariance": np.broadcast_to(np.diag([50.0 ** 2, 50.0 ** 2, 1.0]), (len(t), 3, 3)).copy()})
-    rows = pa.table({"time": t + 0.1, "track_id": np.full(len(t), 7), "icao24": ["fff000"] * len(t),
+    rows = pa.table({"time": t + 0.1, "track_id": np.full(len(t), 7), "status": ["confirmed"] * len(t),
+                     "icao24": ["fff000"] * len(t),
                      "callsign": pa.nulls(len(t), pa.string()), "mode3a": pa.nulls(len(t), pa.string()),
                      "iff": pa.nulls(len(t), pa.string()), "identity_source": ["mode_s"] * len(t),
                      "identity_p": np.full(len(t), 0.9)})
