@@ -92,7 +92,7 @@ class AdsbIdentificationConfig:
     def identifier_config(self) -> IdentifierConfig:
         return IdentifierConfig(q=self.q, gate_m=self.gate_m, horizon_s=self.horizon_s, batch_s=self.batch_s,
                                 threshold=Threshold(p_correct=self.p_keep), report_gate=self.report_gate,
-                                recreate_after_s=self.recreate_after_s)
+                                recreate_after_s=self.recreate_after_s, screen_pairs=True)
 
 
 @dataclass

@@ -9,7 +9,8 @@ in time order:
 2. candidate pairs from a coarse spatial gate on predicted positions (``cKDTree``), made when
    both tracks have full information rank, at the end of a processing batch.
    ``pair_init="fuse"`` starts the joint filter from (24) on the two track states with
-   Λ₀ = d^T (P_i + P_j)^{-1} d (exact for Q = 0, approximate for Q > 0: TV-7);
+   Λ₀ = d^T (P_i + P_j)^{-1} d (exact for Q = 0, approximate for Q > 0: TV-7); with
+   ``screen_pairs`` a candidate whose Λ₀ already exceeds the drop gate of step 5 is not made;
    ``pair_init="replay"`` rebuilds the pair's three filters from the tracks' stored reports
    (exact while the buffer of ``history`` reports per track holds the whole track);
 3. every report of track i updates i's filter and the joint filter of every live pair
@@ -77,6 +78,9 @@ class IdentifierConfig:
     With process noise in the model and smoother true motion, Λ of true pairs drifts upwards with
     the number of reports (its variance grows even when the model holds, TV-5c); a horizon
     bounds that drift at the price of the evidence older than the horizon (skytrack addition)"""
+    screen_pairs: bool = False
+    """``fuse`` only: do not make a pair whose two track states already fail the drop gate (it
+    would be dropped after drop_count updates; with short re-creation delays such pairs churn)"""
     report_gate: float | None = None
     """leave out a report whose normalised innovation in its own track's filter exceeds the
     χ²_m quantile of this probability (e.g. 0.9999): a clutter plot a radar track took would
@@ -158,7 +162,7 @@ class TrackIdentifier:
         self.history = ReportHistory(self.model.n, config.history) if config.pair_init == "replay" else None
         self.time = -np.inf
         self.stats = {"reports": 0, "pair_updates": 0, "pairs_created": 0, "pairs_dropped": 0, "batches": 0,
-                      "reports_gated": 0, "pairs_refreshed": 0}
+                      "reports_gated": 0, "pairs_refreshed": 0, "pairs_not_made": 0}
         dof = self.model.n
         self._drop_gate = float(drop_gate(dof, config.drop_quantile)[0])
 
@@ -320,8 +324,16 @@ class TrackIdentifier:
         if self.config.pair_init == "fuse":
             x_i, P_i = self.tracks.estimate_at(i, t)
             x_j, P_j = self.tracks.estimate_at(j, t)
-            x, _, P = fuse_information(x_i, P_i, x_j, P_j)
-            self.pairs.add(i, j, t, x, P, track_states_test(x_i, P_i, x_j, P_j), self.model.n)
+            statistic = track_states_test(x_i, P_i, x_j, P_j)
+            # with screening, a pair whose tracks already disagree beyond the drop gate is not made:
+            # it would only be dropped again (the spec makes every gated pair; E9 counts them)
+            fits = statistic <= self._drop_gate if self.config.screen_pairs else np.ones(len(i), dtype=bool)
+            self.stats["pairs_not_made"] += int((~fits).sum())
+            if not fits.any():
+                return
+            i, j, statistic = i[fits], j[fits], statistic[fits]
+            x, _, P = fuse_information(x_i[fits], P_i[fits], x_j[fits], P_j[fits])
+            self.pairs.add(i, j, t, x, P, statistic, self.model.n)
         else:
             x, P, t_joint, statistic, dof = replay_pairs(self.model, self.history, i, j)
             self.pairs.add(i, j, t_joint, x, P, statistic, dof)
