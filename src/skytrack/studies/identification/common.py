@@ -10,12 +10,12 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
 from skytrack.studies.fuzzy.common import Check, Progress, pyplot, save_figure
+from skytrack.studies.maneuver.outputs import jsonable  # noqa: F401  (the studies' one JSON converter)
 
 __all__ = ["Check", "Progress", "pyplot", "save_figure", "binomial_se", "within_se", "chunk_sizes",
            "write_summary", "jsonable", "MC_SIGMAS", "CHUNK_DRAWS"]
@@ -42,28 +42,6 @@ def chunk_sizes(trials: int, chunk: int = CHUNK_DRAWS) -> list[int]:
     if trials < 1:
         raise ValueError(f"trials must be >= 1, got {trials}")
     return [min(chunk, trials - start) for start in range(0, trials, chunk)]
-
-
-def jsonable(value):
-    """Plain JSON values: numpy scalars and arrays to Python, NaN to None, +-inf to strings."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        if math.isnan(value):
-            return None
-        return value if math.isfinite(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 def write_summary(path: Path, study: str, options: dict, results: dict, checks: list[Check]) -> Path:
