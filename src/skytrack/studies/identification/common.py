@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from skytrack.studies.fuzzy.common import Check, Progress, pyplot, save_figure
-from skytrack.studies.maneuver.outputs import jsonable  # noqa: F401  (the studies' one JSON converter)
+from skytrack.studies.maneuver.outputs import jsonable
 
 __all__ = ["Check", "Progress", "pyplot", "save_figure", "binomial_se", "within_se", "chunk_sizes",
            "write_summary", "jsonable", "MC_SIGMAS", "CHUNK_DRAWS"]
