@@ -123,3 +123,22 @@ def test_a_mode_s_address_is_not_overwritten():
     table, _ = labeler.label(rows, None)
     assert set(table.column("icao24").to_pylist()) == {"fff000"}
     assert labeler.stats.mode_s_conflicts > 0
+
+
+def test_compiled_and_composed_trackers_record_the_same_plots(scene):
+    """Tracker.record_assignments: the compiled window and the composed parts log the same plots."""
+    from skytrack.tracker import Tracker, TrackerConfig
+
+    result = scene[0]
+    logs = []
+    for compiled in (True, False):
+        config = TrackerConfig()
+        config.association.compiled = compiled
+        tracker = Tracker(result.sensors, config)
+        tracker.record_assignments()
+        tracker.run(result.plots)
+        taken = tracker.drain_assignments()
+        logs.append(pd.DataFrame({"time": taken["time"], "track_id": taken["track_id"]}).sort_values(["time"]))
+    assert len(logs[0]) > 500
+    np.testing.assert_array_equal(logs[0]["time"].to_numpy(), logs[1]["time"].to_numpy())
+    assert Tracker(result.sensors, TrackerConfig()).drain_assignments() is None
