@@ -151,7 +151,8 @@ def test_wrong_labels_and_totals(report):
     totals = report.totals
     expected = {
         "equipped_aircraft": 7, "tracked_long_enough": 6, "identified": 2, "late": 1, "unstable": 1,
-        "not_identified": 2, "not_tracked_long_enough": 1, "sound_tracked_long_enough": 5, "sound_identified": 2,
+        "not_identified": 2, "not_tracked_long_enough": 1, "sound_tracked_long_enough": 5, "sound_identified": 3,
+        "sound_label_held": 2,
         "adsb_faulty_aircraft": 1, "adsb_faulty_left_unidentified": 1,
         "median_time_to_identify_s": 25.0, "max_time_to_identify_s": 100.0,  # of A 20, B 30, C 100, D 20
         "track_rows": 1231, "associated_rows": 1066, "false_track_rows": 165,

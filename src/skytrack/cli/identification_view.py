@@ -40,9 +40,10 @@ def _totals_table(report) -> Table:
     rows = [
         ("ADS-B-equipped aircraft", totals["equipped_aircraft"]),
         (f"tracked >= {min_s:g} s", tracked),
-        ("identified correctly", f"{totals['identified']} of {tracked}"),
+        ("identified correctly, label held", f"{totals['identified']} of {tracked}"),
+        ("identified correctly, label held on < "
+         f"{100 * report.parameters['hold_fraction']:g} % of later instants", totals["unstable"]),
         ("identified late", totals["late"]),
-        ("identified, label not held", totals["unstable"]),
         ("not identified", totals["not_identified"]),
         (f"tracked < {min_s:g} s", totals["not_tracked_long_enough"]),
         ("faulty ADS-B aircraft (left unidentified)",
