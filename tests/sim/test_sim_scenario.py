@@ -275,3 +275,11 @@ def test_terminal_scenario_has_terminal_traffic_and_a_real_radar_s_false_plots()
     touched_down = last.index[(last.alt_m.abs() < 1e-6) & (last.time < 1200.0)]
     assert set(touched_down) <= landing and len(touched_down) >= 5
     assert (first.loc[sorted(departing), "alt_m"] <= 600.0).all()
+
+
+def test_a_folder_named_like_a_bundled_scenario_does_not_hide_it(tmp_path, monkeypatch):
+    from skytrack.sim import load_scenario
+
+    (tmp_path / "demo").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert load_scenario("demo").name == "demo"

@@ -436,7 +436,10 @@ def load_scenario(source: str | Path | dict, overrides: dict | None = None) -> S
     if isinstance(source, dict):
         return _parse(_override(source, overrides), "scenario", default_name="scenario")
     path = Path(source)
-    if not path.exists() and path.suffix == "" and len(path.parts) == 1:
+    # a bare name is a bundled scenario unless a file of that name exists here (a folder named
+    # "demo" in the working directory does not hide the bundled demo)
+    if not path.is_file() and path.suffix == "" and len(path.parts) == 1 and \
+            (not path.exists() or str(source) in bundled_scenarios()):
         path = bundled_scenario_path(str(source))
     try:
         text = path.read_text(encoding="utf-8")
