@@ -29,6 +29,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from skytrack.cli.study_output import print_wide, run_with_progress
+
 console = Console()
 error_console = Console(stderr=True)
 
@@ -48,19 +50,11 @@ def _check_trials(trials: int, minimum: int = 2) -> None:
 
 
 def _print_wide(table: Table) -> None:
-    """Print a table without squeezing its numbers when stdout is narrow or a pipe."""
-    needed = console.measure(table, options=console.options.update_width(100_000)).maximum
-    (console if needed <= console.width else Console(width=needed)).print(table)
+    print_wide(console, table)
 
 
 def _run_with_progress(label: str, run):
-    """Call ``run(progress)`` under a rich progress bar fed by ``progress(completed, total)``."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    columns = (TextColumn(f"[bold]{escape(label)}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=error_console, transient=False) as display:
-        task = display.add_task("steps", total=None)
-        return run(lambda done, total: display.update(task, completed=done, total=total))
+    return run_with_progress(error_console, label, run, "steps")
 
 
 def _summary(title: str, headers, rows) -> None:
