@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from skytrack.models.augmented import AugmentedModel, ca_accel, ct_omega, rk4_substeps
+from skytrack.models.augmented import AugmentedModel, ca_accel, ct_omega, linear_model, rk4_substeps
 from skytrack.models.augmented_measurements import (
     augment_for_biases,
     measurement_for,
@@ -144,6 +144,31 @@ def test_generic_drift_model_by_rk4_matches_closed_form():
     np.testing.assert_allclose(model.G(x, 2.0)[:, 0], [-2.0 * 3.0 * math.exp(-1.4), 1.0], rtol=1e-5)
 
 
+def test_tv3_linear_model_propagates_the_disturbance_through_G():
+    # eq. (3)-(4): x(k) = F x(k-1) + G w(k-1) = phi(x(k-1) + h_a^T w(k-1))
+    F = [[1, 0.5, 0, 0, 2, 3], [0, 1, 0.1, 0, 0.5, 0.7], [0, 0, 1, 0.1, 0.2, 0], [0, 0, 0, 1, 0, 0.4],
+         [0, 0, 0, 0, 1, 0], [0, 0, 0, 0, 0, 1]]
+    model = linear_model("paper-example", F, [f"x{i}" for i in range(1, 7)], ["-"] * 6, ("x5", "x6"),
+                         np.eye(2))
+    x_prev, w = np.array([1.0, 2.0, 3.0, 4.0, 0.5, -0.2]), np.array([0.01, -0.02])
+    expected = [2.36, 2.401, 3.502, 3.912, 0.51, -0.22]
+    np.testing.assert_allclose(model.phi(x_prev, 1.0) + model.G(x_prev, 1.0) @ w, expected, rtol=1e-12)
+    np.testing.assert_allclose(model.phi(x_prev + model.h_a.T @ w, 1.0), expected, rtol=1e-12)
+    np.testing.assert_array_equal(model.G(x_prev, 1.0), np.array(F)[:, 4:])
+
+
+def test_appended_bias_keeps_dependent_noise_and_random_walk():
+    model = augment_for_biases(ct_omega(q_accel=1.0), measurement_for(ct_omega(), "rdot").with_bias("rdot"))
+    Q = model.Q_dep(2.0)
+    np.testing.assert_allclose(Q[:5, :5], ct_omega(q_accel=1.0).Q_dep(2.0), rtol=1e-15)
+    np.testing.assert_array_equal(Q[5], 0.0)
+    x = np.append(TV7_STATE, 0.3)
+    F = model.F(x, 4.0)
+    np.testing.assert_array_equal(F[5], [0, 0, 0, 0, 0, 1])
+    np.testing.assert_array_equal(F[:5, :5], ct_omega().F(TV7_STATE, 4.0))
+    np.testing.assert_allclose(model.V_w, np.diag([1e-8, 1e-6]), rtol=1e-15)
+
+
 # ---------------------------------------------------------------- TV8: S = H F h_a^T (R4)
 
 P0 = (30_000.0, 0.0)
@@ -174,7 +199,11 @@ def test_tv8_acceleration_rows():
     S_rad = one_step_sensitivity(model, meas, _ca_state("radial"), 1.0)
     np.testing.assert_allclose(S_rad, [[0.5, 0.0], [0.0, 0.5], [1.0, 0.0]], rtol=1e-12, atol=1e-12)
     S_tan = one_step_sensitivity(model, meas, _ca_state("tangential"), 1.0)
+    np.testing.assert_allclose(S_tan[:2], [[0.5, 0.0], [0.0, 0.5]], rtol=1e-12)
     np.testing.assert_allclose(S_tan[2], [0.9999555577776681, 0.009999629646912757], rtol=1e-12)
+    # batched over a leading axis of states: both geometries in one call
+    both = one_step_sensitivity(model, meas, np.stack([_ca_state("radial"), _ca_state("tangential")]), 1.0)
+    np.testing.assert_array_equal(both, np.stack([S_rad, S_tan]))
 
 
 @pytest.mark.parametrize("geometry", sorted(GEOMETRY))

@@ -381,4 +381,18 @@ def ca_accel(sigma_accel: float = 0.1, q_accel: float = 0.0) -> AugmentedModel:
                           transition_matrix=ca_accel_matrix, dependent_noise=noise)
 
 
+def linear_model(name: str, F, components, units, parameters, V_w) -> AugmentedModel:
+    """A linear model with a fixed transition matrix F (n x n, the same for every T), phi(x) = F x.
+
+    For models given by their matrix, such as the paper's 6-state example (section 3.5, TV1-TV3).
+    """
+    matrix = np.array(F, dtype=float)
+    n = len(tuple(components))
+    if matrix.shape != (n, n):
+        raise ValueError(f"{name}: F must be {n} x {n}, got shape {matrix.shape}")
+    return AugmentedModel(name=name, components=tuple(components), units=tuple(units),
+                          parameters=tuple(parameters), V_w=V_w,
+                          transition_matrix=lambda t: np.broadcast_to(matrix, np.shape(t) + (n, n)).copy())
+
+
 AUGMENTED_MODELS = {"ct-omega": ct_omega, "ca-accel": ca_accel}
