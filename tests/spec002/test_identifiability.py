@@ -315,3 +315,70 @@ def test_summary_of_direct_checks_global_is_worst():
     assert seq.failing_steps == [] and seq.weak_steps == [2]
     assert seq.indistinguishable_count == {"a1": 1, "a2": 1}
     assert seq.checks.verdict_code[1] != NOT_IDENTIFIABLE
+
+
+# ---------------------------------------------------------------- TV9 (R8 full state, G3)
+
+TV9_NAMES = ("x", "y", "v_x", "v_y", "a_x", "a_y", "b_x")
+
+
+def tv9_sequence(channels: tuple[str, ...], window: int):
+    """R3 dynamics (T = 1) for (x, y, v_x, v_y, a_x, a_y, b_x) from p = (30 000, 0) m, v = (0, 200) m/s;
+    radar position measures (x + b_x, y) σ 50 m, ṙ σ 1 m/s (sensor at the origin), ADS-B (x, y) σ 10 m;
+    H_k at the true x(k) = φ(x(k−1)), steps k = 1 … 10."""
+    F = np.eye(7)
+    for axis in range(2):
+        F[axis, 2 + axis] = 1.0
+        F[axis, 4 + axis] = 0.5
+        F[2 + axis, 4 + axis] = 1.0
+    states = [np.array([30_000.0, 0, 0, 200, 0, 0, 0])]
+    for _ in range(10):
+        states.append(F @ states[-1])
+    states = np.array(states[1:])
+    p, v = states[:, :2], states[:, 2:4]
+    r = np.linalg.norm(p, axis=1)
+    u = p / r[:, None]
+    range_rate = np.einsum("ki,ki->k", u, v)
+    rows, sigmas = [], []
+    if "pos" in channels:
+        radar = np.zeros((10, 2, 7))
+        radar[:, 0, 0] = radar[:, 0, 6] = radar[:, 1, 1] = 1.0
+        rows.append(radar)
+        sigmas += [50.0, 50.0]
+    if "rdot" in channels:
+        doppler = np.zeros((10, 1, 7))
+        doppler[:, 0, :2] = (v - range_rate[:, None] * u) / r[:, None]
+        doppler[:, 0, 2:4] = u
+        rows.append(doppler)
+        sigmas += [1.0]
+    if "adsb" in channels:
+        adsb = np.zeros((10, 2, 7))
+        adsb[:, 0, 0] = adsb[:, 1, 1] = 1.0
+        rows.append(adsb)
+        sigmas += [10.0, 10.0]
+    H = np.concatenate(rows, axis=1)
+    cov = np.diag(np.square(sigmas))
+    return check_sequence(
+        H, np.repeat(F[None], 10, axis=0), unknown="all", names=TV9_NAMES, noise_cov=cov, window=window
+    )
+
+
+@pytest.mark.parametrize("window", [3, 10])
+def test_tv9_radar_position_cannot_separate_position_and_bias(window):
+    seq = tv9_sequence(("pos",), window)
+    assert seq.verdicts[0] == "not_identifiable"
+    assert seq.checks.indistinguishable_names(0) == ["x", "b_x"]
+    assert seq.checks.zero_influence_names(0) == []
+    (vector,) = seq.checks.null_vectors_of(0).T
+    assert vector[6] == pytest.approx(-vector[0], rel=1e-9)
+
+
+def test_tv9_doppler_makes_it_only_weak_and_adsb_identifiable():
+    doppler = tv9_sequence(("pos", "rdot"), 10)
+    assert doppler.verdicts[0] == "weak"
+    assert doppler.checks.kappa[0] == pytest.approx(2.7e-4, abs=5e-6)
+    assert doppler.checks.indistinguishable_names(0) == ["x", "b_x"]
+    adsb = tv9_sequence(("pos", "adsb"), 10)
+    assert adsb.verdicts[0] == "identifiable"
+    assert adsb.checks.kappa[0] == pytest.approx(0.049, abs=5e-4)
+    assert adsb.checks.indistinguishable_names(0) == []
