@@ -274,9 +274,11 @@ def test_tv8_omega_and_doppler_bias_tangential_is_weak_with_D():
     # the null vector in parameter units: a Doppler bias of 200 m/s per rad/s of ω leaves ṙ unchanged
     (vector,) = checks.null_vectors_of(0).T
     assert vector[1] / vector[0] == pytest.approx(199.99111155553362, rel=1e-3)
-    (message,) = checks.messages(0)
-    assert message.startswith("parameters ω, b_ṙ act on the measurements in (nearly) the same way; the combination ")
-    assert message.endswith(" is not determined")
+    # R6 wording; the coefficients are the null vector in parameter units (ω column norm ≈ 200.01)
+    assert checks.messages(0) == [
+        "parameters ω, b_ṙ act on the measurements in (nearly) the same way; "
+        "the combination 0.003536·ω + 0.7071·b_ṙ is not determined"
+    ]
     assert not np.isnan(checks.precision[0]).any()
 
 
@@ -371,6 +373,12 @@ def test_tv9_radar_position_cannot_separate_position_and_bias(window):
     assert seq.checks.zero_influence_names(0) == []
     (vector,) = seq.checks.null_vectors_of(0).T
     assert vector[6] == pytest.approx(-vector[0], rel=1e-9)
+    # 2 rows per step: N_w = 3 still has 6 rows for 7 states (the spec's "N_w ≤ 2" is one short)
+    message, *rest = seq.checks.messages(0)
+    assert rest == (["only 6 measurement channels for 7 parameters"] if window == 3 else [])
+    assert message.startswith("parameters x, b_x act on the measurements in (nearly) the same way; the combination −")
+    terms = message.split("the combination ")[1].removesuffix(" is not determined").split(" ")
+    assert [t.split("·")[1] for t in terms if "·" in t] == ["x", "b_x"]
 
 
 def test_tv9_doppler_makes_it_only_weak_and_adsb_identifiable():

@@ -56,11 +56,13 @@ class IdentifiabilityChecks:
     ``singular_values`` has p entries per step: those of Ŝ in decreasing order, zero-padded (the
     zero-influence columns and the rows beyond min(m, q) contribute zeros).  ``null_vectors[k][:, i]``
     for ``null_vector_mask[k, i]`` are the near-null directions in parameter units (Z rows zero).
-    ``precision`` is σ_χ (R9), NaN where it is not defined.  ``steps`` holds the index k of each
+    ``column_norms`` are ‖S̄e_j‖ of the whitened, scaled S.  ``precision`` is σ_χ (R9), NaN where
+    it is not defined.  ``steps`` holds the index k of each
     step (interval [t_{k-1}, t_{k+window-1}]).
     """
 
     names: tuple[str, ...]
+    param_scale: np.ndarray
     method: str
     steps: np.ndarray
     window: int
@@ -70,6 +72,7 @@ class IdentifiabilityChecks:
     raw_sigma_ratio: np.ndarray
     singular_values: np.ndarray
     influence_ratio: np.ndarray
+    column_norms: np.ndarray
     zero_influence: np.ndarray
     null_space_weight: np.ndarray
     indistinguishable: np.ndarray
@@ -108,13 +111,16 @@ class IdentifiabilityChecks:
         ]
         in_d = self.indistinguishable[i]
         for vector in self.null_vectors_of(i).T:
-            support = np.abs(vector) > 1e-12 * np.abs(vector).max()
-            named = [n for n, d, s in zip(self.names, in_d, support) if d and s]
+            # a parameter enters the message when its share of the unit equilibrated vector reaches
+            # the share that puts it into D; the other components are shown as 0
+            share = (vector * self.column_norms[i] / self.param_scale) ** 2
+            shown = np.where(share >= PI_INDISTINGUISHABLE, vector, 0.0)
+            named = [n for n, d, s in zip(self.names, in_d, shown) if d and s != 0]
             if not named:
                 continue
             out.append(
                 f"parameters {', '.join(named)} act on the measurements in (nearly) the same way; "
-                f"the combination {format_combination(vector, self.names)} is not determined"
+                f"the combination {format_combination(shown, self.names)} is not determined"
             )
         if self.fewer_channels[i]:
             m, p = self.sensitivity.shape[-2:]
@@ -275,6 +281,7 @@ def check_identifiability(
 
     return IdentifiabilityChecks(
         names=names,
+        param_scale=d,
         method=method,
         steps=np.arange(1, K + 1) if steps is None else np.asarray(steps),
         window=window,
@@ -284,6 +291,7 @@ def check_identifiability(
         raw_sigma_ratio=raw_ratio,
         singular_values=sigma,
         influence_ratio=rho,
+        column_norms=column_norm,
         zero_influence=zero,
         null_space_weight=weight,
         indistinguishable=indistinguishable,
