@@ -390,3 +390,14 @@ def test_tv9_doppler_makes_it_only_weak_and_adsb_identifiable():
     assert adsb.verdicts[0] == "identifiable"
     assert adsb.checks.kappa[0] == pytest.approx(0.049, abs=5e-4)
     assert adsb.checks.indistinguishable_names(0) == []
+
+
+def test_tv8_radial_omega_with_doppler_only_is_an_exactly_zero_S():
+    """With only S given and p = 1 (R5 step 2 fallback) only an exactly zero column is detected."""
+    checks = check_identifiability(np.zeros((1, 1)), noise_cov=np.eye(1), names=["ω"])
+    assert checks.verdicts == ["not_identifiable"]
+    assert checks.zero_influence_names(0) == ["ω"]
+    assert checks.indistinguishable_names(0) == []
+    assert checks.messages(0) == ["parameter ω has no influence on the measurements over [t_0, t_1]"]
+    tiny = check_identifiability(np.array([[1e-30]]), noise_cov=np.eye(1), names=["ω"])
+    assert tiny.verdicts == ["identifiable"]

@@ -248,29 +248,12 @@ def check_identifiability(
     else:
         code = svd_code
 
-    # step 6: near-null space of the non-zero-influence columns, basis-independent via its projector
-    in_null = sigma <= TAU_WEAK * sigma_1[:, None]
-    V_null = V * in_null[:, None, :]
-    projector = V_null @ np.swapaxes(V_null, -1, -2)
-    keep = (~zero).astype(float)
-    projector = projector * keep[:, :, None] * keep[:, None, :]
-    weight = np.clip(np.diagonal(projector, axis1=-2, axis2=-1), 0.0, 1.0)
-    indistinguishable = (~zero) & (weight >= PI_INDISTINGUISHABLE)
-    eigenvalues, eigenvectors = np.linalg.eigh(projector)
-    vector_mask = eigenvalues > 0.5
-    with np.errstate(invalid="ignore", divide="ignore"):
-        to_units = np.where(zero, 0.0, d / safe_norm)
-    null_vectors = eigenvectors * to_units[:, :, None]
-    largest = np.take_along_axis(null_vectors, np.abs(null_vectors).argmax(axis=1)[:, None, :], axis=1)
-    null_vectors = null_vectors * np.where(largest < 0, -1.0, 1.0)
-
-    # R9: σ_χ,j = sqrt([(S̄ᵀS̄)⁻¹]_jj) d_j from Ŝ = S̄ diag(1/‖S̄e_j‖)
+    # step 6 and R9
+    weight, indistinguishable, null_vectors, vector_mask = _near_null_space(V, sigma, zero, safe_norm, d)
     precision = np.full((K, p), np.nan)
     defined = (code != NOT_IDENTIFIABLE) & (svd_code != NOT_IDENTIFIABLE)
     if noise_cov is not None and defined.any():
-        Vd, sd = V[defined], sigma[defined]
-        inverse_diag = np.einsum("kji,ki->kj", Vd**2, 1.0 / sd**2)
-        precision[defined] = np.sqrt(inverse_diag) / safe_norm[defined] * d
+        precision[defined] = _precision(V[defined], sigma[defined], safe_norm[defined], d)
 
     # G5: the unequilibrated ratio σ_min/σ_max of S, which moves with the parameter units
     raw_sigma = np.linalg.svd(S, compute_uv=False)
@@ -301,3 +284,32 @@ def check_identifiability(
         verdict_code=code,
         precision=precision,
     )
+
+
+def _near_null_space(
+    V: np.ndarray, sigma: np.ndarray, zero: np.ndarray, column_norm: np.ndarray, d: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """R5 step 6 for the non-zero-influence columns: π_j, D, null vectors in parameter units, their mask.
+
+    The near-null space of the zeroed Ŝ is that of the kept columns plus the unit vectors of Z; the
+    projector restricted to the kept coordinates is therefore the kept columns' own projector, whose
+    diagonal is π (basis-independent) and whose unit eigenvectors are the null vectors.
+    """
+    in_null = sigma <= TAU_WEAK * sigma[:, :1]
+    V_null = V * in_null[:, None, :]
+    keep = (~zero).astype(float)
+    projector = (V_null @ np.swapaxes(V_null, -1, -2)) * keep[:, :, None] * keep[:, None, :]
+    weight = np.clip(np.diagonal(projector, axis1=-2, axis2=-1), 0.0, 1.0)
+    indistinguishable = (~zero) & (weight >= PI_INDISTINGUISHABLE)
+    eigenvalues, eigenvectors = np.linalg.eigh(projector)
+    # Ŝ v = 0 ⇔ S diag(d / ‖S̄e_j‖) v = 0: the parameter-unit direction is v_j d_j / ‖S̄e_j‖
+    null_vectors = eigenvectors * (keep * d / column_norm)[:, :, None]
+    largest = np.take_along_axis(null_vectors, np.abs(null_vectors).argmax(axis=1)[:, None, :], axis=1)
+    null_vectors = null_vectors * np.where(largest < 0, -1.0, 1.0)
+    return weight, indistinguishable, null_vectors, eigenvalues > 0.5
+
+
+def _precision(V: np.ndarray, sigma: np.ndarray, column_norm: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """R9: σ_χ,j = sqrt([(S̄ᵀS̄)⁻¹]_jj) d_j, with (S̄ᵀS̄)⁻¹ = diag(1/‖S̄e‖) V Σ⁻² Vᵀ diag(1/‖S̄e‖)."""
+    inverse_diag = np.einsum("kji,ki->kj", V**2, 1.0 / sigma**2)
+    return np.sqrt(inverse_diag) / column_norm * d
