@@ -1,0 +1,173 @@
+"""Spec 002 TV8 (R4, R5, R10): the whole radar identifiability table through ``check_along``.
+
+Every row of TV8 (parameters ω / ω+b_ṙ / a_x,a_y / +b_x / +b_ṙ; radial and tangential flight; the
+measurement sets pos, ṙ, pos+ṙ): verdict, Z, D, ``m < p`` exactly, κ at the spec's 1 % relative.
+Also the unwhitened {a_x, a_y, b_ṙ} radial pos+ṙ margin (0.2361, identifiable) and the polar (r, az)
+equivalence for every set without b_x (same verdict, Z, D; κ within 4 %).  A bias whose channel is
+not measured is appended to the model with no measurement row acting on it (an exactly zero column).
+"""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from skytrack.analysis.identifiability_along import check_along, linearise_along
+from skytrack.models.augmented import ca_accel, ct_omega
+from skytrack.models.augmented_measurements import CHANNEL_UNITS, measurement_for, one_step_sensitivity
+
+P0 = (30_000.0, 0.0)
+VELOCITY = {"radial": (-200.0, 0.0), "tangential": (0.0, 200.0)}
+CHANNEL_VARIANCE = {"x": 50.0**2, "y": 50.0**2, "rdot": 1.0**2, "r": 50.0**2, "az": math.radians(0.1) ** 2}
+KINDS = {"pos": ("pos",), "rdot": ("rdot",), "pos+rdot": ("pos", "rdot"),
+         "polar": ("polar",), "polar+rdot": ("polar", "rdot")}
+PARAMETER_SETS = {
+    "omega": ("omega", ()),
+    "omega,b_rdot": ("omega", ("rdot",)),
+    "ax,ay": ("accel", ()),
+    "ax,ay,b_x": ("accel", ("x",)),
+    "ax,ay,b_rdot": ("accel", ("rdot",)),
+}
+
+I, W, N = "identifiable", "weak", "not_identifiable"
+# (parameters, geometry, set): (verdict, κ or None, Z, D, m < p) — spec 002 TV8 table
+TABLE = {
+    ("omega", "radial", "pos"): (I, 1.0, (), (), False),
+    ("omega", "radial", "rdot"): (N, 0.0, ("omega",), (), False),
+    ("omega", "radial", "pos+rdot"): (I, 1.0, (), (), False),
+    ("omega", "tangential", "pos"): (I, 1.0, (), (), False),
+    ("omega", "tangential", "rdot"): (I, 1.0, (), (), False),
+    ("omega", "tangential", "pos+rdot"): (I, 1.0, (), (), False),
+    ("omega,b_rdot", "radial", "pos"): (N, 0.0, ("b_rdot",), (), False),
+    ("omega,b_rdot", "radial", "rdot"): (N, 0.0, ("omega",), (), True),
+    ("omega,b_rdot", "radial", "pos+rdot"): (I, 1.0, (), (), False),
+    ("omega,b_rdot", "tangential", "pos"): (N, 0.0, ("b_rdot",), (), False),
+    ("omega,b_rdot", "tangential", "rdot"): (N, None, (), ("omega", "b_rdot"), True),
+    ("omega,b_rdot", "tangential", "pos+rdot"): (W, 0.005000, (), ("omega", "b_rdot"), False),
+    ("ax,ay", "radial", "pos"): (I, 1.0, (), (), False),
+    ("ax,ay", "radial", "rdot"): (N, 0.0, ("ay",), (), True),
+    ("ax,ay", "radial", "pos+rdot"): (I, 1.0, (), (), False),
+    ("ax,ay", "tangential", "pos"): (I, 1.0, (), (), False),
+    ("ax,ay", "tangential", "rdot"): (N, None, (), ("ax", "ay"), True),
+    ("ax,ay", "tangential", "pos+rdot"): (I, 0.414254, (), (), False),
+    ("ax,ay,b_x", "radial", "pos"): (N, None, (), ("ax", "b_x"), True),
+    ("ax,ay,b_x", "radial", "rdot"): (N, 0.0, ("ay", "b_x"), (), True),
+    ("ax,ay,b_x", "radial", "pos+rdot"): (I, 0.990050, (), (), False),
+    ("ax,ay,b_x", "tangential", "pos"): (N, None, (), ("ax", "b_x"), True),
+    ("ax,ay,b_x", "tangential", "rdot"): (N, 0.0, ("b_x",), ("ax", "ay"), True),
+    ("ax,ay,b_x", "tangential", "pos+rdot"): (I, 0.414195, (), (), False),
+    ("ax,ay,b_rdot", "radial", "pos"): (N, 0.0, ("b_rdot",), (), True),
+    ("ax,ay,b_rdot", "radial", "rdot"): (N, 0.0, ("ay",), ("ax", "b_rdot"), True),
+    ("ax,ay,b_rdot", "radial", "pos+rdot"): (W, 0.005000, (), ("ax", "b_rdot"), False),
+    ("ax,ay,b_rdot", "tangential", "pos"): (N, 0.0, ("b_rdot",), (), True),
+    ("ax,ay,b_rdot", "tangential", "rdot"): (N, None, (), ("ax", "ay", "b_rdot"), True),
+    ("ax,ay,b_rdot", "tangential", "pos+rdot"): (W, 0.004370, (), ("ax", "b_rdot"), False),
+}
+
+
+def radar_case(parameters, geometry, measurement_set):
+    """(model, measurement, states x(k-1), φ(x(k-1)), V_η) of one TV8 cell."""
+    kind, biases = PARAMETER_SETS[parameters]
+    base = ct_omega() if kind == "omega" else ca_accel()
+    measurement = measurement_for(base, KINDS[measurement_set])
+    for channel in biases:
+        if channel in measurement.channels:
+            measurement = measurement.with_bias(channel)
+        else:  # the bias exists in the model but its channel is not measured: no row acts on it
+            measurement = replace(measurement, state_dim=measurement.state_dim + 1)
+    model = base.with_parameters([f"b_{c}" for c in biases], [CHANNEL_UNITS[c] for c in biases],
+                                 [1e-6] * len(biases)) if biases else base
+    start = np.zeros(model.dim)
+    start[:4] = (*P0, *VELOCITY[geometry])
+    states = np.stack([start, model.phi(start, 1.0)])
+    noise_cov = np.diag([CHANNEL_VARIANCE[c] for c in measurement.channels])
+    return model, measurement, states, noise_cov
+
+
+def run(parameters, geometry, measurement_set, whiten=True):
+    model, measurement, states, noise_cov = radar_case(parameters, geometry, measurement_set)
+    return check_along(model, measurement, states, 1.0, noise_cov=noise_cov if whiten else None)
+
+
+def assert_cell(record, verdict, kappa, zero, indistinguishable, fewer, kappa_rtol):
+    checks = record.checks
+    assert len(checks) == 1
+    assert checks.verdicts == [verdict]
+    assert record.global_verdict == verdict
+    assert tuple(checks.zero_influence_names(0)) == zero
+    assert tuple(checks.indistinguishable_names(0)) == indistinguishable
+    assert bool(checks.fewer_channels[0]) is fewer
+    if kappa == 0.0:
+        assert checks.kappa[0] == 0.0
+    elif kappa is not None:
+        assert checks.kappa[0] == pytest.approx(kappa, rel=kappa_rtol)
+    if verdict == N:
+        assert checks.kappa[0] <= 1e-6
+
+
+@pytest.mark.parametrize("cell", sorted(TABLE), ids=lambda c: "-".join(c))
+def test_tv8_table_cell(cell):
+    assert_cell(run(*cell), *TABLE[cell], kappa_rtol=0.01)
+
+
+def test_tv8_table_is_complete():
+    assert len(TABLE) == len(PARAMETER_SETS) * 2 * 3 == 30
+
+
+def test_tv8_unwhitened_accelerations_and_doppler_bias_radial_hide_the_weakness():
+    record = run("ax,ay,b_rdot", "radial", "pos+rdot", whiten=False)
+    assert record.verdicts == [I]
+    assert record.checks.kappa[0] == pytest.approx(0.2361, abs=5e-5)
+    assert record.checks.indistinguishable_names(0) == []
+
+
+POLAR_CELLS = [(params, geometry, measurement_set)
+               for params in PARAMETER_SETS if "b_x" not in params
+               for geometry in VELOCITY for measurement_set in ("pos", "pos+rdot")]
+
+
+@pytest.mark.parametrize("cell", POLAR_CELLS, ids=lambda c: "-".join(c))
+def test_tv8_polar_gives_the_same_decision(cell):
+    params, geometry, measurement_set = cell
+    verdict, kappa, zero, indistinguishable, fewer = TABLE[cell]
+    record = run(params, geometry, measurement_set.replace("pos", "polar"))
+    assert_cell(record, verdict, kappa, zero, indistinguishable, fewer, kappa_rtol=0.04)
+
+
+def test_check_along_linearises_at_the_previous_state_and_its_prediction():
+    # F_k at x_{k-1} and H_k at φ(x_{k-1}) along a curved path, all steps in one call
+    model = ct_omega()
+    measurement = measurement_for(model, ("pos", "rdot"))
+    states = [np.array([30_000.0, 0.0, 0.0, 200.0, 0.02])]
+    for _ in range(5):
+        states.append(model.phi(states[-1], 2.0))
+    states = np.stack(states)
+    H, F = linearise_along(model, measurement, states, 2.0)
+    assert H.shape == (5, 3, 5) and F.shape == (5, 5, 5)
+    np.testing.assert_array_equal(F, model.F(states[:-1], 2.0))
+    np.testing.assert_array_equal(H, measurement.H(model.phi(states[:-1], 2.0)))
+    record = check_along(model, measurement, states, 2.0, noise_cov=np.diag([2500.0, 2500.0, 1.0]))
+    np.testing.assert_allclose(record.checks.sensitivity,
+                               one_step_sensitivity(model, measurement, states[:-1], 2.0), rtol=1e-14)
+    assert list(record.steps) == [1, 2, 3, 4, 5]
+    assert record.checks.names == ("omega",)
+
+
+def test_check_along_window_and_full_state_pass_through():
+    model = ca_accel()
+    measurement = measurement_for(model, "pos")
+    start = np.array([30_000.0, 0.0, 0.0, 200.0, 0.0, 0.0])
+    states = np.stack([start] + [model.phi(start, float(k)) for k in range(1, 6)])
+    record = check_along(model, measurement, states, 1.0, noise_cov=np.diag([400.0, 400.0]),
+                         window=3, unknown="all")
+    assert len(record.checks) == 3
+    assert record.checks.names == model.components
+    assert record.global_verdict == I
+
+
+def test_check_along_rejects_a_measurement_of_other_states():
+    model = ca_accel()
+    measurement = measurement_for(model, "pos").with_bias("x")
+    with pytest.raises(ValueError, match="augment_for_biases"):
+        check_along(model, measurement, np.zeros((2, 6)), 1.0)
