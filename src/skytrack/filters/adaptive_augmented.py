@@ -164,6 +164,23 @@ def estimator_gain(S: np.ndarray, C: np.ndarray, weighting: Weighting):
     return L, L @ C @ np.swapaxes(L, -1, -2)
 
 
+def filter_gain(Vx: np.ndarray, H: np.ndarray, noise_cov: np.ndarray, inverse: GainInverse = "cholesky"):
+    """Gain (6) Γ = V_x Hᵀ (H V_x Hᵀ + V_η)⁻¹ and the innovation covariance, batched (A7).
+
+    ``"cholesky"`` solves with the Cholesky factor (fails loudly if the sum is not positive
+    definite); ``"explicit"`` forms the inverse, as the paper writes it (R13).
+    """
+    Ht = np.swapaxes(H, -1, -2)
+    innovation_cov = H @ Vx @ Ht + noise_cov
+    cross = Vx @ Ht
+    if inverse == "explicit":
+        return cross @ np.linalg.inv(innovation_cov), innovation_cov
+    chol = np.linalg.cholesky(innovation_cov)
+    half = np.linalg.solve(chol, np.swapaxes(cross, -1, -2))
+    gain = np.swapaxes(np.linalg.solve(np.swapaxes(chol, -1, -2), half), -1, -2)
+    return gain, innovation_cov
+
+
 class AdaptiveAugmentedFilter:
     """R11 adaptive augmented filter over a bank of tracks.
 
@@ -256,14 +273,7 @@ class AdaptiveAugmentedFilter:
         Vx = A + G @ V_used @ np.swapaxes(G, -1, -2)
         Vx = 0.5 * (Vx + np.swapaxes(Vx, -1, -2))
         # A7 gain (6)
-        innovation_cov = H @ Vx @ Ht + V_eta
-        cross = Vx @ Ht
-        if s.gain_inverse == "explicit":
-            gain = cross @ np.linalg.inv(innovation_cov)
-        else:
-            chol = np.linalg.cholesky(innovation_cov)
-            half = np.linalg.solve(chol, np.swapaxes(cross, -1, -2))
-            gain = np.swapaxes(np.linalg.solve(np.swapaxes(chol, -1, -2), half), -1, -2)
+        gain, innovation_cov = filter_gain(Vx, H, V_eta, s.gain_inverse)
         white = np.linalg.solve(np.linalg.cholesky(innovation_cov), nu[..., None])[..., 0]
         nis = np.einsum("ki,ki->k", white, white)
         # A8 update
