@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from skytrack.analysis.identifiability_along import check_along, linearise_along
+from skytrack.analysis.identifiability_along import check_along, check_along_tracks, linearise_along
 from skytrack.models.augmented import ca_accel, ct_omega
 from skytrack.models.augmented_measurements import CHANNEL_UNITS, measurement_for, one_step_sensitivity
 
@@ -171,3 +171,32 @@ def test_check_along_rejects_a_measurement_of_other_states():
     measurement = measurement_for(model, "pos").with_bias("x")
     with pytest.raises(ValueError, match="augment_for_biases"):
         check_along(model, measurement, np.zeros((2, 6)), 1.0)
+
+
+@pytest.mark.parametrize("window, unknown", [(1, "parameters"), (2, "parameters"), (3, "all")])
+def test_check_along_tracks_equals_check_along_per_track(window, unknown):
+    # radial, tangential and a turning track in one batched call; each record as for the track alone
+    model = ct_omega()
+    measurement = measurement_for(model, ("pos", "rdot"))
+    starts = np.array([[30_000.0, 0.0, -200.0, 0.0, 0.0], [30_000.0, 0.0, 0.0, 200.0, 0.0],
+                       [20_000.0, 5_000.0, 150.0, -100.0, 0.03]])
+    tracks = [starts]
+    for _ in range(5):
+        tracks.append(model.phi(tracks[-1], 1.0))
+    states = np.stack(tracks, axis=1)  # (B, N, n)
+    cov = np.diag([2500.0, 2500.0, 1.0])
+    records = check_along_tracks(model, measurement, states, 1.0, noise_cov=cov, window=window, unknown=unknown)
+    assert len(records) == 3
+    for track, record in zip(states, records):
+        alone = check_along(model, measurement, track, 1.0, noise_cov=cov, window=window, unknown=unknown)
+        assert record.verdicts == alone.verdicts
+        assert list(record.steps) == list(alone.steps)
+        assert record.checks.names == alone.checks.names
+        np.testing.assert_allclose(record.checks.kappa, alone.checks.kappa, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(record.checks.sensitivity, alone.checks.sensitivity, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(record.checks.zero_influence, alone.checks.zero_influence)
+        np.testing.assert_array_equal(record.checks.indistinguishable, alone.checks.indistinguishable)
+    if window == 1:
+        # the radial track's Doppler-free step structure differs from the tangential one's
+        assert records[0].checks.sensitivity[0, 2, 0] == 0.0
+        assert records[1].checks.sensitivity[0, 2, 0] == pytest.approx(-199.99111155553362, rel=1e-12)
