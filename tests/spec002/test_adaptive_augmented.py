@@ -250,3 +250,66 @@ def test_tv11b_one_step_unbiased_monte_carlo():
     mean_Q = out.Q.mean(axis=0)
     standard_error = out.Q.std(axis=0) / np.sqrt(N)
     assert np.all(np.abs(mean_Q - V_w) <= 4 * standard_error), (mean_Q, standard_error)
+
+
+# ---------------------------------------------------------------- A5.4 options, A2 wrapping, A8 short form, bank
+
+def test_window_memory_is_the_mean_of_the_last_Q():
+    filt = AdaptiveAugmentedFilter(TV11_MODEL, TV11_MEASUREMENT, AdaptiveSettings(sigma_min=[0.01], window=2))
+    state = filt.initial_state([0, 100, 0], np.diag([25, 4, 0.25]), V_w0=[[0.04]])
+    Qs = []
+    for y in ([112, 104.5], [205, 104.0], [310, 106.0]):
+        out = filt.step(state, [y], 1.0, TV11_NOISE)
+        Qs.append(out.Q[0, 0, 0])
+        np.testing.assert_allclose(out.V_bar[0, 0, 0], np.mean(Qs[-2:]), rtol=1e-12)
+
+
+def test_rate_option_scales_memory_by_the_interval():
+    filt = AdaptiveAugmentedFilter(TV11_MODEL, TV11_MEASUREMENT, AdaptiveSettings(
+        sigma_min=[0.01], forgetting=0.0, n0=0.0, rate=True))
+    state = filt.initial_state([0, 100, 0], np.diag([25, 4, 0.25]), V_w0=[[0.04]])
+    T = 2.0
+    out = filt.step(state, [[112, 104.5]], T, TV11_NOISE)
+    np.testing.assert_allclose(out.V_bar[0, 0, 0], out.Q[0, 0, 0] / T, rtol=1e-12)
+    np.testing.assert_allclose(out.V_w[0, 0, 0], out.Q[0, 0, 0], rtol=1e-12)
+
+
+def test_short_form_differs_from_joseph_only_for_a_suboptimal_gain():
+    _, _, joseph = tv11_step("none")
+    _, _, short = tv11_step("none", joseph=False)
+    np.testing.assert_allclose(short.P, joseph.P, rtol=1e-9, atol=1e-12)  # optimal gain: the forms agree
+    np.testing.assert_allclose(short.x, joseph.x, rtol=1e-14)
+
+
+def test_angle_innovation_is_wrapped():
+    model = linear_model("angle", [[1.0, 1.0], [0.0, 1.0]], ("az", "rate"), ("rad", "rad/s"), ("rate",), [[1e-4]])
+    measurement = LinearMeasurement([[1.0, 0.0]], angular=[True])
+    filt = AdaptiveAugmentedFilter(model, measurement, AdaptiveSettings(sigma_min=[1e-3]))
+    state = filt.initial_state([[np.pi - 0.05, 0.0]], np.diag([1e-4, 1e-4]))
+    out = filt.step(state, [[-np.pi + 0.05]], 1.0, [[1e-4]])
+    np.testing.assert_allclose(out.innovation[0], [0.1], rtol=1e-9)
+
+
+def test_bank_equals_tracks_one_by_one_and_is_reproducible():
+    from skytrack.models.augmented import ct_omega
+    from skytrack.models.augmented_measurements import measurement_for
+
+    model = ct_omega(sigma_omega=1e-3, q_accel=1.0)
+    measurement = measurement_for(model, ("pos", "rdot"))
+    settings = AdaptiveSettings(sigma_min=[1e-5], sigma_max=[np.radians(2.0)], forgetting=0.8)
+    rng = np.random.default_rng(7)
+    x0 = np.array([[30_000.0, 0.0, 0.0, 200.0, 0.01], [20_000.0, 5_000.0, -150.0, 50.0, -0.02]])
+    P0 = np.diag([2500.0, 2500.0, 100.0, 100.0, 1e-4])
+    V_eta = np.diag([50.0**2, 50.0**2, 1.0])
+    ys = np.stack([measurement.h(model.phi(x0, float(k))) for k in range(1, 6)]) + rng.normal(size=(5, 2, 3))
+    bank = AdaptiveAugmentedFilter(model, measurement, settings)
+    together = bank.run(bank.initial_state(x0, P0), ys, 1.0, V_eta)
+    again = bank.run(bank.initial_state(x0, P0), ys, 1.0, V_eta)
+    for name in together:
+        np.testing.assert_array_equal(together[name], again[name])
+    for track in range(2):
+        alone = bank.run(bank.initial_state(x0[track], P0), ys[:, track:track + 1], 1.0, V_eta)
+        np.testing.assert_allclose(alone["x"][:, 0], together["x"][:, track], rtol=1e-12)
+        np.testing.assert_allclose(alone["V_w"][:, 0], together["V_w"][:, track], rtol=1e-12)
+    assert np.all(np.linalg.eigvalsh(together["P"]) > 0)
+    assert together["verdict"].shape == (5, 2) and together["skipped"].shape == (5, 2)
