@@ -120,6 +120,8 @@ def test_tv11a_one_step(weighting):
     F = np.array([[1, 1, 0.5], [0, 1, 1], [0, 0, 1]])
     C = TV11_MEASUREMENT.matrix @ F @ np.diag([25, 4, 0.25]) @ F.T @ TV11_MEASUREMENT.matrix.T + TV11_NOISE
     np.testing.assert_allclose(C, [[129.0625, 4.125], [4.125, 4.5]], rtol=RTOL)
+    np.testing.assert_allclose(out.estimator_cov[0], C, rtol=RTOL)
+    np.testing.assert_allclose(out.sensitivity[0], [[0.5], [1.0]], rtol=RTOL)
     np.testing.assert_allclose(state.count, [5.5], rtol=RTOL)
     np.testing.assert_allclose(out.L[0, 0], expected["L"], rtol=RTOL, atol=PRINTED_ATOL)
     np.testing.assert_allclose(out.w_hat[0, 0], expected["w"], rtol=RTOL, atol=PRINTED_ATOL)
@@ -243,7 +245,8 @@ def test_tv11b_one_step_unbiased_monte_carlo():
     filt = AdaptiveAugmentedFilter(model, LinearMeasurement(PAPER_H), AdaptiveSettings(sigma_min=[1e-3, 1e-3]))
     state = filt.initial_state(np.broadcast_to(TV3_X, (N, 6)), 0.01 * np.eye(6))
     out = filt.step(state, y, 1.0, V_eta)
-    LCL = np.einsum("pm,mn,qn->pq", out.L[0], [[0.1525, 0.02], [0.02, 0.0125]], out.L[0])
+    np.testing.assert_allclose(out.estimator_cov[0], [[0.1525, 0.02], [0.02, 0.0125]], rtol=1e-12)
+    LCL = np.einsum("pm,mn,qn->pq", out.L[0], out.estimator_cov[0], out.L[0])
     np.testing.assert_allclose(LCL, [[0.0125, -0.0016667], [-0.0016667, 0.0136111]], rtol=1e-4)
     second_moment = np.einsum("kp,kq->pq", out.w_hat, out.w_hat) / N
     np.testing.assert_allclose(second_moment, [[0.0525, -0.0016667], [-0.0016667, 0.1036111]], atol=2e-3)

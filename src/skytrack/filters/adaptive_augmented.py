@@ -111,7 +111,9 @@ class AdaptiveStepOutput:
     x: np.ndarray
     P: np.ndarray
     innovation: np.ndarray
-    innovation_cov: np.ndarray
+    innovation_cov: np.ndarray  # H V_x(k|k−1) Hᵀ + V_η, the gain's and the NIS's
+    estimator_cov: np.ndarray  # C_k = H A_k Hᵀ + V_η of A3, the estimator's (without G V̂_w Gᵀ)
+    sensitivity: np.ndarray  # S_k = H_k G_k
     nis: np.ndarray
     V_w: np.ndarray  # V̂_w used in the prediction covariance (A6)
     V_w_estimate: np.ndarray  # V̂_w(k−1) = Π(V̄) after this step
@@ -286,7 +288,8 @@ class AdaptiveAugmentedFilter:
             P_new = I_KH @ Vx
         state.x, state.P = x_new, P_new
         return AdaptiveStepOutput(
-            x=x_new, P=P_new, innovation=nu, innovation_cov=innovation_cov, nis=nis, V_w=V_used,
+            x=x_new, P=P_new, innovation=nu, innovation_cov=innovation_cov, estimator_cov=C,
+            sensitivity=S, nis=nis, V_w=V_used,
             V_w_estimate=V_after, V_bar=state.V_bar.copy(), w_hat=w_hat, Q=Q, L=L_out, gain=gain,
             verdict=verdict, kappa=kappa, zero_influence=zero, adapted=adapted, skipped=state.skipped.copy(),
             prior_cov=Vx,
