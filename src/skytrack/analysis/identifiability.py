@@ -33,18 +33,19 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-#: zero-influence threshold on ρ_j (R5 step 2)
-TAU_ZERO = 1e-10
-#: κ at or below which the parameters are not identifiable (R5 step 5)
-TAU_REL = 1e-6
-#: κ at or below which the identification is weak; also the near-null threshold (R5 steps 5-6)
-TAU_WEAK = 1e-2
+# the thresholds and verdict codes of R5 are defined once, beside the filter's per-step check
+from skytrack.filters.identifiability_step import (  # noqa: F401  (re-exported)
+    IDENTIFIABLE,
+    NOT_IDENTIFIABLE,
+    TAU_REL,
+    TAU_WEAK,
+    TAU_ZERO,
+    VERDICT_NAMES,
+    WEAK,
+)
+
 #: share of a parameter in the near-null space from which it is indistinguishable (R5 step 6)
 PI_INDISTINGUISHABLE = 0.01
-
-#: verdict codes, worst first: the global verdict of a sequence is the minimum (R7)
-NOT_IDENTIFIABLE, WEAK, IDENTIFIABLE = 0, 1, 2
-VERDICT_NAMES = ("not_identifiable", "weak", "identifiable")
 
 Method = Literal["svd", "det"]
 

@@ -23,7 +23,7 @@ TAU_ZERO = 1e-10
 TAU_REL = 1e-6
 #: κ at or below which identification is weak (R5 step 5)
 TAU_WEAK = 1e-2
-#: verdict codes, worst first (same as skytrack.analysis.identifiability)
+#: verdict codes, worst first (skytrack.analysis.identifiability uses these)
 NOT_IDENTIFIABLE, WEAK, IDENTIFIABLE = 0, 1, 2
 VERDICT_NAMES = ("not_identifiable", "weak", "identifiable")
 
