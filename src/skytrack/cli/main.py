@@ -26,6 +26,7 @@ from rich.table import Table
 from skytrack import __version__
 from skytrack.cli import defaults
 from skytrack.cli.identify import identify_app
+from skytrack.cli.observability import observability_app
 from skytrack.cli.study import study_app
 
 app = typer.Typer(
@@ -37,6 +38,7 @@ app = typer.Typer(
 )
 app.add_typer(study_app, name="study")
 app.add_typer(identify_app, name="identify")
+app.add_typer(observability_app, name="observability")
 
 console = Console()
 error_console = Console(stderr=True)
