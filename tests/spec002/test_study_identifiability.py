@@ -6,9 +6,9 @@ relative); TV2's timeline (failing k = 2, 6; literal det passes them); TV6 (N_w 
 κ = 0.2675472390 to the printed 10 digits).  E2 (R9, R10, R7, R6): along the E3 track the pos σ_χ
 is 11.46°/s within 1 % and flat within 0.1 %; ṙ and pos+ṙ give 0.143°/s within 5 % on the
 tangential first leg; the peaks are 29°/s (ṙ) and 10.7°/s (pos+ṙ) within 15 % at t = 166 ± 2 s
-where ψ = 0.3° ± 0.05°; TV8's 30 cells and TV9's 3 rows equal the spec's tables; the built culprit
-cases name their culprits (Z = {b_rdot} for a Doppler bias with position only; D = {omega, b_rdot}
-with Doppler).  Figures: the drawn line data (det curve = f16², flat pos line at 11.46°/s).  The
+where ψ = 0.3° ± 0.05°; TV8's 30 cells, its 16 polar cells (κ ± 4 %) and TV9's 3 rows equal the
+spec's tables; the built culprit cases name their culprits (Z = {b_rdot} for a Doppler bias with
+position only; D = {omega, b_rdot} with Doppler).  Figures: the drawn line data (det curve = f16², flat pos line at 11.46°/s).  The
 commands run through a local typer app on which ``register_identifiability_studies`` is called.
 """
 
@@ -162,9 +162,12 @@ def test_e2_figure_draws_the_flat_position_line(track):
     radar_track.pyplot().close(fig)
 
 
-def test_e2_tv8_and_tv9_tables_match_the_spec():
+def test_e2_tv8_with_its_polar_variant_and_tv9_match_the_spec():
     tv8 = radar_cells.tv8_table()
     assert len(tv8) == 30 and tv8["matches"].all(), tv8[~tv8["matches"]]
+    polar = radar_cells.tv8_table(polar=True)
+    assert len(polar) == 16 and polar["matches"].all(), polar[~polar["matches"]]
+    assert radar_cells.check_polar(polar)[0].passed
     tv9 = radar_cells.tv9_table()
     assert list(tv9["verdict"]) == ["not_identifiable", "weak", "identifiable"]
     assert tv9["matches"].all()
@@ -218,7 +221,7 @@ def test_cli_ident_example_check_exits_1_on_a_failed_expectation(tmp_path, monke
 def test_cli_ident_radar_prints_tables_and_names_the_culprit(tmp_path):
     result = CliRunner().invoke(_app(), ["ident-radar", "--out", str(tmp_path), "--check"], env={"COLUMNS": "250"})
     assert result.exit_code == 0, result.output
-    assert "FAIL" not in result.output and "all 13 expected values hold" in result.output
+    assert "FAIL" not in result.output and "all 14 expected values hold" in result.output
     assert "parameter b_rdot has no influence on the measurements over [t_0, t_1]" in result.output
     assert "position only" in result.output and "position + Doppler" in result.output
     summary = json.loads((tmp_path / "ident_radar_summary.json").read_text())

@@ -161,6 +161,9 @@ def ident_radar(
     result = radar_study.run_radar(out, T, window)
     if not as_json:
         _print_radar(result, radar_setups)
+        if T != 1.0 or window != 1:
+            console.print(escape(f"note: §6 E2's σ_χ values and the built culprit cases are for T = 1 s, N_w = 1; "
+                                 f"with T = {T:g} s, N_w = {window} they are reported above, not checked."))
     _finish("ident-radar", result["checks"], result["paths"], check, as_json)
 
 
@@ -173,6 +176,13 @@ def _print_radar(result: dict, radar_setups) -> None:
         ([r.parameters, r.geometry, r.set, r.verdict, f"{r.kappa:.6f}", r.Z or "—", r.D or "—", r.m_lt_p,
           r.expected_verdict, "—" if r.expected_kappa != r.expected_kappa else f"{r.expected_kappa:.6f}",
           r.expected_Z or "—", r.expected_D or "—", _verdict(r.matches)] for r in tv8.itertuples())))
+    polar = result["tv8_polar"]
+    print_wide(console, _table(
+        "TV8 polar: (r, az) with σ_r = 50 m, σ_az = 0.1° in place of (x, y) — same decision as the (x, y) cell?",
+        ("parameters", "geometry", "set", "verdict", "κ", "Z", "D", "(x, y) cell verdict", "(x, y) κ", "match"),
+        ([r.parameters, r.geometry, r.set, r.verdict, f"{r.kappa:.6f}", r.Z or "—", r.D or "—", r.expected_verdict,
+          "—" if r.expected_kappa != r.expected_kappa else f"{r.expected_kappa:.6f}", _verdict(r.matches)]
+         for r in polar.itertuples())))
     tv9 = result["tv9"]
     print_wide(console, _table(
         "TV9: full state (x, y, v_x, v_y, a_x, a_y, b_x) over N_w = 10 steps (R8, G3) — computed | spec",

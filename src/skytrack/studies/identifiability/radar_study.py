@@ -7,7 +7,8 @@ with culprits (:mod:`~.radar_setups`), checks every expectation (§5 TV8, TV9; �
 * ``ident_radar_track.csv`` — per interval: t, ψ, ω, σ_χ and verdict for pos, ṙ, pos+ṙ;
 * ``ident_radar_steps.csv`` — per measurement set: verdict counts, global verdict, worst steps;
 * ``ident_radar_setups.csv`` — per (parameters, set): counts, global verdict, culprits, R6 message;
-* ``ident_radar_tv8.csv``, ``ident_radar_tv9.csv`` — computed cells next to the spec's;
+* ``ident_radar_tv8.csv``, ``ident_radar_tv8_polar.csv``, ``ident_radar_tv9.csv`` — computed cells next
+  to the spec's (polar: (r, az) in place of (x, y) for the parameter sets without b_x);
 * ``ident_radar.png`` — σ_χ(t) (log), κ(t) of two bias set-ups (log), ψ(t) with ω(t);
 * ``ident_radar_summary.json`` — options, results, checks.
 """
@@ -26,12 +27,12 @@ from skytrack.studies.identification.common import Check, pyplot, save_figure, w
 #: the set-ups whose margin κ(t) is drawn (a culprit appears where κ dips below τ_weak)
 KAPPA_PANEL = (("omega,b_rdot", "pos+rdot"), ("omega,b_x", "pos"), ("omega", "pos+rdot"))
 NAMES = {"csv": "ident_radar_track.csv", "steps": "ident_radar_steps.csv", "setups": "ident_radar_setups.csv",
-         "tv8": "ident_radar_tv8.csv", "tv9": "ident_radar_tv9.csv", "png": "ident_radar.png",
+         "tv8": "ident_radar_tv8.csv", "tv8_polar": "ident_radar_tv8_polar.csv", "tv9": "ident_radar_tv9.csv", "png": "ident_radar.png",
          "json": "ident_radar_summary.json"}
 
 
 def check_tables(tv8: pd.DataFrame, tv9: pd.DataFrame) -> list[Check]:
-    """TV8 (30 cells) and TV9 (3 rows) against the spec's tables."""
+    """TV8 (30 cells) and TV9 (3 rows) against the spec's tables (the polar variant: radar_cells.check_polar)."""
     checks = []
     for label, table in (("TV8 cells (verdict, κ ± 1 %, Z, D, m < p)", tv8), ("TV9 rows (verdict, κ, D)", tv9)):
         wrong = table[~table["matches"]]
@@ -85,19 +86,22 @@ def run_radar(out_dir: Path, T: float = 1.0, window: int = 1) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     tv8 = radar_cells.tv8_table()
     tv9 = radar_cells.tv9_table()
+    polar = radar_cells.tv8_table(polar=True)
     track, records = radar_track.precision_along(T, window)
     steps = radar_track.step_summary(track, records)
     setups = radar_setups.setups_table(T, window)
     kappa = kappa_tracks(T, window)
     checks = check_tables(tv8, tv9)
-    if T == 1.0 and window == 1:  # §6 E2's numbers are for the one-step check at T = 1 s
+    checks += radar_cells.check_polar(polar)
+    if T == 1.0 and window == 1:  # §6 E2's numbers and the built cases are for the one-step check at T = 1 s
         checks += radar_track.check_track(track)
-    checks += radar_setups.check_culprits(setups)
+        checks += radar_setups.check_culprits(setups)
     paths = {key: out_dir / name for key, name in NAMES.items()}
     track.to_csv(paths["csv"], index=False, float_format="%.10g")
     steps.to_csv(paths["steps"], index=False, float_format="%.10g")
     setups.to_csv(paths["setups"], index=False, float_format="%.10g")
     tv8.to_csv(paths["tv8"], index=False, float_format="%.10g")
+    polar.to_csv(paths["tv8_polar"], index=False, float_format="%.10g")
     tv9.to_csv(paths["tv9"], index=False, float_format="%.10g")
     save_figure(plot_radar(track, kappa), paths["png"])
     results = {"steps": steps.to_dict(orient="records"),
@@ -106,5 +110,5 @@ def run_radar(out_dir: Path, T: float = 1.0, window: int = 1) -> dict:
     options = {"T_s": T, "window": window, "sigma_pos_m": radar_track.SIGMA_POS_M,
                "sigma_rdot_mps": radar_track.SIGMA_RDOT_MPS, "sigma_az_deg": float(np.degrees(radar_track.SIGMA_AZ_RAD))}
     write_summary(paths["json"], "ident-radar", options, results, checks)
-    return {"tv8": tv8, "tv9": tv9, "track": track, "steps": steps, "setups": setups, "kappa": kappa,
+    return {"tv8": tv8, "tv8_polar": polar, "tv9": tv9, "track": track, "steps": steps, "setups": setups, "kappa": kappa,
             "checks": checks, "paths": paths, "results": results, "options": options}
