@@ -170,3 +170,13 @@ def test_command_writes_tables_figures_and_summary(tmp_path):
     assert (tmp_path / "turn_rate_T4_pos_rdot_qa1.png").stat().st_size > 10_000
     bad = runner.invoke(app, ["turn-rate-adaptive", "--meas", "sonar", "--out", str(tmp_path)])
     assert bad.exit_code == 2
+
+
+def test_median_sigma_w_sits_at_the_floor_on_straight_legs_and_jumps_in_turn_1(doppler_t1):
+    checks = {c.name: c for c in expected_checks(list(doppler_t1.values()))}
+    floor = next(c for name, c in checks.items() if "at the floor on the straight legs" in name)
+    turn1 = next(c for name, c in checks.items() if "first 7 s of turn 1" in name)
+    assert floor.passed and turn1.passed, (floor.measured, turn1.measured)
+    curves = doppler_t1["adaptive-0.8"].curves
+    straight = (curves["times"] >= 20) & (curves["times"] < 60)
+    np.testing.assert_allclose(curves["median_sigma_w_t"][straight], sc.PRESET_SIGMA_MIN / sc.DEG, rtol=1e-9)

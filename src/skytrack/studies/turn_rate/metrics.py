@@ -8,7 +8,8 @@
 * :func:`expected_checks` — E3's expected behaviour (Doppler: adaptive λ = 0.8 beats the best fixed
   V_w on every straight leg and in turn 1, within 25 % of it in turn 2; position only: it does not
   beat the tuned fixed V_w on the straight legs; the literal per-step (7) is never the best;
-  position RMSE range) and E4's divergence fractions (q_a = 0: the prototype's ±15 points;
+  position RMSE range; median √V̂_w at the floor on straight legs, ≈ 0.8°/s early in turn 1, ≈ 0.36°/s
+  after turn 2, no jump at the start of turn 2) and E4's divergence fractions (q_a = 0: the prototype's ±15 points;
   q_a = 1 m²/s³: 0 % everywhere).
 """
 
@@ -153,7 +154,39 @@ def expected_checks(summaries: list[Summary]) -> list[Check]:
                             "best in: " + (", ".join(literal_best) or "no window"),
                             "literal not the lowest ω-RMSE in any window", not literal_best))
     checks += _position_range_check(summaries)
+    checks += _sigma_w_checks(summaries)
     return checks
+
+
+def _sigma_w_checks(summaries: list[Summary]) -> list[Check]:
+    """E3's √V̂_w behaviour for Doppler, T = 1 s, adaptive λ = 0.8, q_a = 1 (median over the kept runs)."""
+    match = [s for s in summaries if s.key == "adaptive-0.8" and s.T == 1.0 and s.measurement == "pos+rdot"
+             and s.q_accel == sc.PRESET_Q_ACCEL]
+    if not match:
+        return []
+    curves = match[0].curves
+    times, median = curves["times"], curves["median_sigma_w_t"]
+    floor = sc.PRESET_SIGMA_MIN / sc.DEG
+
+    def span(start, end):
+        return median[(times >= start) & (times < end)]
+
+    straight = np.concatenate([span(*sc.WINDOWS[w]) for w in sc.STRAIGHT_WINDOWS])
+    at_floor = float(np.mean(straight <= 1.01 * floor))
+    turn1, after2, start2 = span(60.0, 67.0).mean(), span(212.0, 219.0).mean(), span(152.0, 159.0)
+    label = "T=1 s, pos+ṙ, adaptive λ=0.8: median √V̂_w"
+    factor = sc.RMSE_FACTOR
+    return [
+        Check(f"{label} at the floor on the straight legs", f"{100 * at_floor:.0f} % of straight-leg samples at σ_min",
+              "≥ 90 % of the straight-leg samples at the floor", at_floor >= 0.9),
+        Check(f"{label} in the first 7 s of turn 1 (mean over [60, 67) s)", f"{turn1:.2f} °/s",
+              f"≈ 0.8 °/s (within ×{factor:g})", 0.8 / factor <= turn1 <= 0.8 * factor),
+        Check(f"{label} after the end of turn 2 (mean over [212, 219) s)", f"{after2:.2f} °/s",
+              f"≈ 0.36 °/s (within ×{factor:g})", 0.36 / factor <= after2 <= 0.36 * factor),
+        Check(f"{label} does not jump at the start of turn 2 ([152, 159) s)",
+              f"max {start2.max():.2f} °/s, {int(np.sum(start2 > 1.01 * floor))} samples above the floor",
+              "stays at the floor (near-radial geometry)", bool(np.all(start2 <= 1.01 * floor))),
+    ]
 
 
 def _prototype_checks(group: dict[str, Summary], T, measurement, q_accel, label) -> list[Check]:
