@@ -75,13 +75,14 @@ REFERENCE = "sparse-1000"
 FILTERS = {
     "default": None,
     "imm-cv-ct": {"kind": "imm", "options": {"model_set": "cv-ct"}},
+    "ct-omega-adaptive": {"kind": "ct-omega-adaptive", "options": {}},
     "imm": {"kind": "imm", "options": {}},
 }
 #: --filters also takes association rules (issue 8): the default filter with ``--association-rule``
 RULES = ("nn", "fuzzy", "crisp", "ml")
 DEFAULT_FILTERS = "default,imm-cv-ct,imm"
 #: variants held to a fraction of another variant's plots/s on the same scene: name -> (baseline, fraction)
-RELATIVE_TARGETS = {"imm-cv-ct": ("default", 1.0 / 3.0), "fuzzy": ("nn", 0.5), "crisp": ("nn", 0.5)}
+RELATIVE_TARGETS = {"imm-cv-ct": ("default", 1.0 / 3.0), "ct-omega-adaptive": ("default", 1.0 / 3.0), "fuzzy": ("nn", 0.5), "crisp": ("nn", 0.5)}
 #: identity added to the plots for the rule variants: share of plots with an IFF reply, of flipped replies
 IFF_REPLY_SHARE, IFF_FLIP_SHARE = 0.7, 0.05
 

@@ -23,12 +23,18 @@ from skytrack.cli.study_fuzzy import register_fuzzy_studies
 from skytrack.cli.study_ident_mc import register_mc_studies
 from skytrack.cli.study_ident_potential import register_potential_studies
 from skytrack.cli.study_maneuver import register_maneuver_studies
+from skytrack.cli.study_adaptive_numerics import register_adaptive_numerics_studies
+from skytrack.cli.study_identifiability import register_identifiability_studies
+from skytrack.cli.study_turn_rate import register_turn_rate_studies
 
 study_app = typer.Typer(help="Reproduce the studies of the papers in shared/specs.", no_args_is_help=True)
 register_maneuver_studies(study_app)  # spec 004 §6: skytrack study kf-gains, ...
 register_fuzzy_studies(study_app)  # spec 003 §6: skytrack study fuzzy-fig2, fuzzy-regions, fuzzy-gate, ...
 register_potential_studies(study_app)  # spec 001 §6 E1-E4: skytrack study ident-potential, ident-np-design, ident-elliptic
 register_mc_studies(study_app)  # spec 001 §6 E5-E9: skytrack study ident-sequential-mc, ..., ident-many-to-many
+register_identifiability_studies(study_app)  # spec 002 §6 E1-E2: skytrack study ident-example, ident-radar
+register_turn_rate_studies(study_app)  # spec 002 §6 E3-E4: skytrack study turn-rate-adaptive [--q-dep 0]
+register_adaptive_numerics_studies(study_app)  # spec 002 §6 E5-E7: gain-conditioning, poor-experiment, vw-estimator
 
 #: E5: for P_D >= this, the Monte Carlo ratios must lie within 1 +- MC_BAND
 MC_PD_CHECKED = 0.7

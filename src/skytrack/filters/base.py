@@ -230,7 +230,10 @@ class Capabilities:
     time-homogeneous).  ``estimate``: "gaussian" or "set" (set-membership filters).
     ``multiple_model``: the estimate is the moment-matched mixture of several models' filters
     (IMM, static bank), so it is conservative on a path of one model rather than chi-square
-    consistent.
+    consistent.  ``matched_consistent``: the filter is chi-square consistent on a motion model of
+    its estimate's layout (its ``matched_motion`` or the one it was built with); False where the
+    model it is consistent on has states the estimate does not carry (``ca-accel-adaptive``'s
+    random-walk accelerations).
     """
 
     has_covariance: bool = True
@@ -238,6 +241,7 @@ class Capabilities:
     zero_dt_identity: bool = True
     estimate: str = "gaussian"
     multiple_model: bool = False
+    matched_consistent: bool = True
 
 
 class BatchFilter(ABC):

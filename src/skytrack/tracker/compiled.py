@@ -24,6 +24,8 @@ from skytrack.association.features import FeatureTables
 from skytrack.association.gnn import MAX_DENSE_CLUSTER
 from skytrack.core.plots import PlotBatch
 from skytrack.filters.base import GaussianState, MixtureState
+from skytrack.filters.adaptive_tracking import AdaptiveTrackingFilter
+from skytrack.filters.adaptive_tracking_kernels import settings_vector
 from skytrack.filters.imm import IMMFilter, SojournTransition
 from skytrack.filters.kalman import KalmanFilter
 from skytrack.filters.maneuver import ManoeuvreState
@@ -33,6 +35,7 @@ from skytrack.models.conversion_kernels import convert_2d_batch, convert_3d_batc
 from skytrack.models.motion import ConstantVelocityAxis
 from skytrack.tracker.schedule import SECTOR_MARGIN
 from skytrack.tracker.imm_stage_kernel import stage_imm
+from skytrack.tracker.adaptive_stage_kernel import stage_adaptive
 from skytrack.tracker.stage_kernel import (COST_RULE_SIZE, RULE_CRISP, RULE_FUZZY, RULE_LLR, RULE_ML, RULE_NN, stage_cv,
                                            stages_cv)
 from skytrack.tracker.window_kernels import expect_rotating, initiate_manage, record_and_manage
@@ -187,7 +190,7 @@ class CompiledStages:
             columns["confirmed_at"], columns["alt_m"], columns["z_hint"], columns["mode3a"], columns["icao24"],
             columns["iff"], columns["identity"], columns["score"], columns["score_max"], *self._score_settings(s),
             plots.range_m, plots.azimuth, plot_stage, (w_end - w_start) / self.scoring.periods[s], *self.scoring.clutter_arguments(s),
-            self.scoring.code_counts[s], outside,
+            self.scoring.code_counts[s], outside, *self._extra_start,
         )
         bank.size = size
         self.next_track_id += len(new)
@@ -239,6 +242,29 @@ class CompiledStages:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows
 
+    def _associate_fused_adaptive(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots,
+                                  manoeuvre: bool):
+        """:meth:`_associate` of an adaptive augmented filter in one compiled call
+        (:func:`skytrack.tracker.adaptive_stage_kernel.stage_adaptive`)."""
+        storage, columns = self.bank.storage, self.bank.column_storage
+        code, p, settings = self.fused_adaptive
+        (plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, _, dim, search_scale, margin_s, gate,
+         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, _, _, _, _,
+         two_point, _, _, n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s,
+         plot_iff, clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score,
+         score_max) = self._stage_arguments(s, plots, converted)
+        rows, plot_rows, candidates = stage_adaptive(
+            tracks, free, storage.x, storage.P, columns["t"], columns["alt_m"], manoeuvre, code, dim, p, settings,
+            t_ref, plot_time, plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, search_scale, margin_s, gate,
+            replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin, miss, max_dense, two_point,
+            n_updates, n_misses, z_hint, status, mode3a, icao24, iff, identity, plot_mode3a, plot_mode_s, plot_iff,
+            clutter_grid, clutter_params, clutter_log_area, cost_rule, log_pd, log_miss, ssr, score, score_max,
+        )
+        self.stats["candidate_pairs"] += candidates
+        if manoeuvre:
+            self.stats["manoeuvre_gate_hits"] += len(rows)
+        return rows, plot_rows
+
     def _associate_fused_imm(self, s, tracks, free, t_ref, plots: PlotBatch, converted: ConvertedPlots,
                              manoeuvre: bool):
         """:meth:`_associate` of an IMM in one compiled call (:func:`skytrack.tracker.imm_stage_kernel.stage_imm`)."""
@@ -261,6 +287,28 @@ class CompiledStages:
         if manoeuvre:
             self.stats["manoeuvre_gate_hits"] += len(rows)
         return rows, plot_rows
+
+
+def fused_adaptive(filter, association) -> tuple | None:
+    """``(code, p, settings)`` for :func:`~skytrack.tracker.adaptive_stage_kernel.stage_adaptive` when
+    the compiled stage applies: a compiled adaptive augmented filter (spec 002 R14) without a
+    recorder, and the compiled GNN association with a scorer of :data:`COMPILED_SCORERS` in global mode."""
+    if not (isinstance(filter, AdaptiveTrackingFilter) and filter.compiled) or filter.recorder.active:
+        return None
+    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
+            and association.mode == "global"):
+        return None
+    return filter.code, filter.p, settings_vector(filter.code, filter.preset)
+
+
+def extra_start(filter) -> tuple[np.ndarray, np.ndarray]:
+    """Start values and variances of the state components beyond the CV ones of a new track (the
+    compiled initiation's ``extra_x0``, ``extra_var``): an adaptive filter's parameters and memory."""
+    if not isinstance(filter, AdaptiveTrackingFilter):
+        return np.zeros(0), np.zeros(0)
+    probe = filter.initiate(np.zeros((1, filter.n_motion)), np.zeros((1, filter.n_motion, filter.n_motion)))
+    n = filter.n_motion
+    return probe.x[0, n:].copy(), np.diagonal(probe.P[0])[n:].copy()
 
 
 def fused_imm(filter, association) -> tuple | None:

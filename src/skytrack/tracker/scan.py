@@ -44,7 +44,7 @@ from skytrack.geo.sensors import SensorSet
 from skytrack.models.conversion import ConvertedPlots, convert_plots, sensor_positions
 from skytrack.models.converted import ConvertedPositionModel
 from skytrack.models.height import bounded_height
-from skytrack.tracker.compiled import CompiledStages, cost_rule_vector, fused_cv_q, fused_imm
+from skytrack.tracker.compiled import CompiledStages, cost_rule_vector, extra_start, fused_adaptive, fused_cv_q, fused_imm
 from skytrack.tracker.bank import CONFIRMED, STANDARD_COLUMNS, TENTATIVE, TrackBank
 from skytrack.tracker.evidence import TrackScoring, ssr_log_ratio_reference
 from skytrack.tracker.identity import initial_identity, remember_replies_reference
@@ -175,6 +175,11 @@ class ScanProcessor(CompiledStages):
         self.fused_imm = fused_imm(filter, assoc)
         self.fused_imm_sensor = [self.fused_imm is not None and model.linear and not sensor.is_moving
                                  for model, sensor in zip(self.measurements, sensors.sensors)]
+        # the adaptive augmented filters' compiled stage (spec 002 R14), likewise
+        self.fused_adaptive = fused_adaptive(filter, assoc)
+        self.fused_adaptive_sensor = [self.fused_adaptive is not None and model.linear and not sensor.is_moving
+                                      for model, sensor in zip(self.measurements, sensors.sensors)]
+        self._extra_start = extra_start(filter)
         self._rotation = [np.ascontiguousarray(sensor.rotation, dtype=float) for sensor in sensors.sensors]
         self._origin = [np.asarray(sensor.position, dtype=float) for sensor in sensors.sensors]
         self._no_psi = np.zeros(1, dtype=bool)
@@ -233,7 +238,8 @@ class ScanProcessor(CompiledStages):
         hit = np.zeros(n_tracks, dtype=bool)
         plot_used = np.zeros(len(plots), dtype=bool)
         plot_stage = np.full(len(plots), -1, np.int8)
-        compiled_window = (self.fused[s] or self.fused_imm_sensor[s]) and self.schedule.rotating[s]
+        compiled_window = (self.fused[s] or self.fused_imm_sensor[s] or self.fused_adaptive_sensor[s]) \
+            and self.schedule.rotating[s]
         expected = outside = hit
         if n_tracks:
             if compiled_window:
@@ -306,6 +312,8 @@ class ScanProcessor(CompiledStages):
             return self._associate_fused(s, tracks, free, t_ref, plots, converted, manoeuvre)
         if self.fused_imm_sensor[s]:
             return self._associate_fused_imm(s, tracks, free, t_ref, plots, converted, manoeuvre)
+        if self.fused_adaptive_sensor[s]:
+            return self._associate_fused_adaptive(s, tracks, free, t_ref, plots, converted, manoeuvre)
         if self.sequential and len(free) > 1:
             return self._associate_sequential(s, tracks, free, t_ref, plots, converted, manoeuvre)
         return self._associate_pairs(s, tracks, free, t_ref, plots, converted, manoeuvre)

@@ -204,7 +204,8 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
                        n_updates, n_misses, created, last_event, confirmed_at, alt_m, z_hint, mode3a, icao24, iff,
                        identity, score, score_max, log_miss, score_logic, confirm_score, drop_score, delete_drop, min_plots, plot_range,
                        plot_azimuth,
-                       plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside):
+                       plot_stage, scans, clutter_grid, clutter_params, clutter_log_area, code_counts, outside,
+                       extra_x0, extra_var):
     """The end of a window for a bank of constant-velocity-layout states with the standard columns,
     in place: one-point initiation of ``new_plots`` (:class:`~skytrack.tracker.initiation.Initiator`;
     every mode of a mixture starts from it with probabilities ``mu0``, as
@@ -212,7 +213,9 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
     window's events and life-cycle decisions (:func:`record_and_manage`) and the compaction of the
     kept rows (:meth:`~skytrack.tracker.bank.TrackBank.keep`).  The arrays must have room for
     ``size + len(new_plots)`` rows; the states are in mixture form (:func:`record_and_manage`);
-    without ``with_psi`` the psi arrays are not touched.
+    without ``with_psi`` the psi arrays are not touched.  State components beyond the CV ones
+    (an augmented filter's parameters and memory, :mod:`skytrack.filters.adaptive_tracking`) start at
+    ``extra_x0`` with variances ``extra_var`` (uncorrelated) and move with their rows.
     First the clutter map and the code counts learn from the window's plots
     (:meth:`skytrack.tracker.evidence.TrackScoring.observe`).
     Returns the new size, the counts (misses, confirmed, hopeless, lost) and the kept rows (new
@@ -220,7 +223,8 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
     (:func:`skytrack.tracker.identity.changed_rows`)."""
     count_codes(plot_stage, plot_mode3a, plot_mode_c, code_counts)
     observe_kernel(plot_range, plot_azimuth, plot_stage, scans, clutter_grid, clutter_params, clutter_log_area)
-    n = 2 * dim
+    n_cv = 2 * dim
+    n = x.shape[2]
     for c in range(len(new_plots)):
         j = new_plots[c]
         k = size + c
@@ -230,6 +234,9 @@ def initiate_manage(size, new_plots, plot_time, plot_pos, plot_cov, plot_mode_c,
                 x[k, mode, i] = 0.0
                 for l in range(n):
                     P[k, mode, i, l] = 0.0
+            for i in range(n_cv, n):
+                x[k, mode, i] = extra_x0[i - n_cv]
+                P[k, mode, i, i] = extra_var[i - n_cv]
             for a in range(dim):
                 x[k, mode, 2 * a] = plot_pos[j, a]
                 for b in range(dim):
