@@ -1,8 +1,8 @@
 """Spec 002 R16 (§3.6, gap G9): the poorly-planned-experiment diagnostic, TV12 (a) static and (b) remedies.
 
 TV12(b) runs the deterministic linear Kalman covariance recursion (fixed V_w, R3 dynamics from
-``ca_accel``) for 100 steps; diag P(100|100) is asserted at the spec's 1e-6 relative, the literal ratio
-at its printed digits, the run verdict in both modes, the flagged fraction after burn-in and R5 on S.
+``ca_accel``; the set-up is study E6's ``remedy_run``) for 100 steps; diag P(100|100) is asserted at
+the spec's 1e-6 relative, the literal ratio at its printed digits, the run verdict in both modes, the flagged fraction after burn-in and R5 on S.
 """
 
 import numpy as np
@@ -15,7 +15,7 @@ from skytrack.analysis.experiment_quality import (
     culprits_of,
 )
 from skytrack.analysis.identifiability import check_identifiability
-from skytrack.models.augmented import ca_accel
+from skytrack.studies.adaptive_numerics import poor_experiment
 
 COMPONENTS = ("x", "y", "vx", "vy", "ax", "ay", "b_x")
 UNITS = ("m", "m", "m/s", "m/s", "m/s^2", "m/s^2", "m")
@@ -119,29 +119,9 @@ def assert_printed(actual, printed, rtol=1e-6):
 
 
 def remedy_run(variant):
-    """(model, H, V_η, channel names, P(k|k) for k = 1 … 100) of one TV12(b) variant."""
-    biased = variant != "V1"
-    model = ca_accel(sigma_accel=0.1)
-    if biased:
-        model = model.with_parameters(["b_x"], ["m"], [1e-4])
-    n = model.dim
-    H = np.zeros((2, n))
-    H[0, 0] = H[1, 1] = 1.0
-    if biased:
-        H[0, 6] = 1.0  # the radar measures x + b_x
-    noise = [400.0, 400.0]
-    channels = ["x_radar", "y_radar"]
-    if variant == "V2":
-        H = np.vstack([H, np.eye(n)[:2]])
-        noise += [100.0, 100.0]
-        channels += ["x_unbiased", "y_unbiased"]
-    V_eta = np.diag(noise)
-    P0 = np.diag([1e6, 1e6, 100.0, 100.0, 1.0, 1.0, 1e6][:n])
-    if variant == "V3":
-        P0[6, 6] = 100.0
-    F = model.F(np.zeros(n), 1.0)
-    P = covariance_recursion(F, model.V_w, model.h_a, H, V_eta, P0, 100)
-    return model, H, V_eta, channels, P
+    """(model, H, V_η, channel names, P(k|k) for k = 1 … 100) of one TV12(b) variant, set up by study E6."""
+    run = poor_experiment.remedy_run(variant)
+    return run.model, run.H, run.noise_cov, list(run.channels), run.P
 
 
 @pytest.mark.parametrize("variant", sorted(TV12B))

@@ -5,84 +5,40 @@ measurement sets pos, ṙ, pos+ṙ): verdict, Z, D, ``m < p`` exactly, κ at the
 Also the unwhitened {a_x, a_y, b_ṙ} radial pos+ṙ margin (0.2361, identifiable) and the polar (r, az)
 equivalence for every set without b_x (same verdict, Z, D; κ within 4 %).  A bias whose channel is
 not measured is appended to the model with no measurement row acting on it (an exactly zero column).
+The spec's TV8 table and the cell builder are study E2's (:mod:`skytrack.studies.identifiability.radar_cells`),
+so that the code base holds one copy of them.
 """
-
-import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from skytrack.analysis.identifiability_along import check_along, check_along_tracks, linearise_along
 from skytrack.models.augmented import ca_accel, ct_omega
-from skytrack.models.augmented_measurements import CHANNEL_UNITS, measurement_for, one_step_sensitivity
+from skytrack.models.augmented_measurements import measurement_for, one_step_sensitivity
+from skytrack.studies.identifiability import radar_cells
+from skytrack.studies.identifiability.radar_cells import (
+    I,
+    MEASUREMENT_SETS,
+    N,
+    PARAMETER_SETS,
+    TV8_P0,
+    TV8_SIGMA,
+    TV8_TABLE,
+    TV8_VELOCITY,
+)
 
-P0 = (30_000.0, 0.0)
-VELOCITY = {"radial": (-200.0, 0.0), "tangential": (0.0, 200.0)}
-CHANNEL_VARIANCE = {"x": 50.0**2, "y": 50.0**2, "rdot": 1.0**2, "r": 50.0**2, "az": math.radians(0.1) ** 2}
-KINDS = {"pos": ("pos",), "rdot": ("rdot",), "pos+rdot": ("pos", "rdot"),
-         "polar": ("polar",), "polar+rdot": ("polar", "rdot")}
-PARAMETER_SETS = {
-    "omega": ("omega", ()),
-    "omega,b_rdot": ("omega", ("rdot",)),
-    "ax,ay": ("accel", ()),
-    "ax,ay,b_x": ("accel", ("x",)),
-    "ax,ay,b_rdot": ("accel", ("rdot",)),
-}
-
-I, W, N = "identifiable", "weak", "not_identifiable"
-# (parameters, geometry, set): (verdict, κ or None, Z, D, m < p) — spec 002 TV8 table
-TABLE = {
-    ("omega", "radial", "pos"): (I, 1.0, (), (), False),
-    ("omega", "radial", "rdot"): (N, 0.0, ("omega",), (), False),
-    ("omega", "radial", "pos+rdot"): (I, 1.0, (), (), False),
-    ("omega", "tangential", "pos"): (I, 1.0, (), (), False),
-    ("omega", "tangential", "rdot"): (I, 1.0, (), (), False),
-    ("omega", "tangential", "pos+rdot"): (I, 1.0, (), (), False),
-    ("omega,b_rdot", "radial", "pos"): (N, 0.0, ("b_rdot",), (), False),
-    ("omega,b_rdot", "radial", "rdot"): (N, 0.0, ("omega",), (), True),
-    ("omega,b_rdot", "radial", "pos+rdot"): (I, 1.0, (), (), False),
-    ("omega,b_rdot", "tangential", "pos"): (N, 0.0, ("b_rdot",), (), False),
-    ("omega,b_rdot", "tangential", "rdot"): (N, None, (), ("omega", "b_rdot"), True),
-    ("omega,b_rdot", "tangential", "pos+rdot"): (W, 0.005000, (), ("omega", "b_rdot"), False),
-    ("ax,ay", "radial", "pos"): (I, 1.0, (), (), False),
-    ("ax,ay", "radial", "rdot"): (N, 0.0, ("ay",), (), True),
-    ("ax,ay", "radial", "pos+rdot"): (I, 1.0, (), (), False),
-    ("ax,ay", "tangential", "pos"): (I, 1.0, (), (), False),
-    ("ax,ay", "tangential", "rdot"): (N, None, (), ("ax", "ay"), True),
-    ("ax,ay", "tangential", "pos+rdot"): (I, 0.414254, (), (), False),
-    ("ax,ay,b_x", "radial", "pos"): (N, None, (), ("ax", "b_x"), True),
-    ("ax,ay,b_x", "radial", "rdot"): (N, 0.0, ("ay", "b_x"), (), True),
-    ("ax,ay,b_x", "radial", "pos+rdot"): (I, 0.990050, (), (), False),
-    ("ax,ay,b_x", "tangential", "pos"): (N, None, (), ("ax", "b_x"), True),
-    ("ax,ay,b_x", "tangential", "rdot"): (N, 0.0, ("b_x",), ("ax", "ay"), True),
-    ("ax,ay,b_x", "tangential", "pos+rdot"): (I, 0.414195, (), (), False),
-    ("ax,ay,b_rdot", "radial", "pos"): (N, 0.0, ("b_rdot",), (), True),
-    ("ax,ay,b_rdot", "radial", "rdot"): (N, 0.0, ("ay",), ("ax", "b_rdot"), True),
-    ("ax,ay,b_rdot", "radial", "pos+rdot"): (W, 0.005000, (), ("ax", "b_rdot"), False),
-    ("ax,ay,b_rdot", "tangential", "pos"): (N, 0.0, ("b_rdot",), (), True),
-    ("ax,ay,b_rdot", "tangential", "rdot"): (N, None, (), ("ax", "ay", "b_rdot"), True),
-    ("ax,ay,b_rdot", "tangential", "pos+rdot"): (W, 0.004370, (), ("ax", "b_rdot"), False),
-}
+TABLE = TV8_TABLE
+VELOCITY = TV8_VELOCITY
 
 
 def radar_case(parameters, geometry, measurement_set):
     """(model, measurement, states x(k-1), φ(x(k-1)), V_η) of one TV8 cell."""
     kind, biases = PARAMETER_SETS[parameters]
-    base = ct_omega() if kind == "omega" else ca_accel()
-    measurement = measurement_for(base, KINDS[measurement_set])
-    for channel in biases:
-        if channel in measurement.channels:
-            measurement = measurement.with_bias(channel)
-        else:  # the bias exists in the model but its channel is not measured: no row acts on it
-            measurement = replace(measurement, state_dim=measurement.state_dim + 1)
-    model = base.with_parameters([f"b_{c}" for c in biases], [CHANNEL_UNITS[c] for c in biases],
-                                 [1e-6] * len(biases)) if biases else base
+    model, measurement = radar_cells.radar_case(kind, biases, MEASUREMENT_SETS[measurement_set])
     start = np.zeros(model.dim)
-    start[:4] = (*P0, *VELOCITY[geometry])
+    start[:4] = (*TV8_P0, *TV8_VELOCITY[geometry])
     states = np.stack([start, model.phi(start, 1.0)])
-    noise_cov = np.diag([CHANNEL_VARIANCE[c] for c in measurement.channels])
-    return model, measurement, states, noise_cov
+    return model, measurement, states, radar_cells.noise_covariance(measurement, TV8_SIGMA)
 
 
 def run(parameters, geometry, measurement_set, whiten=True):
