@@ -199,4 +199,13 @@ def test_vw_estimator_command_short_run(tmp_path):
     table = pd.read_csv(tmp_path / "vw_estimator.csv")
     assert len(table) == 16 and set(table["forgetting"]) == {0.9, 0.99, 0.999, 1.0}
     assert (tmp_path / "vw_estimator_medians.csv").exists() and (tmp_path / "vw_estimator.png").exists()
-    assert CliRunner().invoke(app(), ["vw-estimator", "--out", str(tmp_path), "--trials", "1"]).exit_code == 2
+
+
+@pytest.mark.parametrize("args, message", [(["gain-conditioning", "--trials", "0"], "--trials must be >= 1"),
+                                           (["poor-experiment", "--trials", "-1"], "--trials must be >= 1"),
+                                           (["vw-estimator", "--trials", "1"], "at least 2"),
+                                           (["vw-estimator", "--steps-d", "10"], "--steps-d at least 11")])
+def test_bad_options_exit_2_before_anything_runs(tmp_path, args, message):
+    result = CliRunner().invoke(app(), [*args, "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2 and message in result.output
+    assert not (tmp_path / "out").exists()

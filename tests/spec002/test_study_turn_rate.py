@@ -7,19 +7,25 @@ divergence band ±15 points likewise to ±27 points.  The entries checked are on
 turn transients dominate or whose 100-run values lie well inside ×1.5 (see the study's report).
 """
 
+import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 import typer
 from typer.testing import CliRunner
 
 from skytrack.cli.study_turn_rate import register_turn_rate_studies
+from skytrack.studies.fuzzy.common import Check
+from skytrack.studies.turn_rate import study as turn_rate_study
 from skytrack.studies.turn_rate import scenario as sc
 from skytrack.studies.turn_rate.figures import PANEL_TITLES, draw_setup
 from skytrack.studies.turn_rate.metrics import expected_checks, summarize
 from skytrack.studies.turn_rate.simulation import build_filter_for, run_configuration, run_imm, simulate_setup
 from skytrack.studies.turn_rate.study import run_summaries
+
+plt = pytest.importorskip("matplotlib.pyplot")
 
 RUNS = 30
 SEED = 7
@@ -141,35 +147,53 @@ def test_figure_draws_the_truth_the_floor_and_the_rmse_curves(doppler_t4):
             assert unit in ax.get_ylabel()
             assert ax.get_legend() is not None
     finally:
-        import matplotlib.pyplot as plt
-
         plt.close(fig)
 
 
-def test_command_writes_tables_figures_and_summary(tmp_path):
+def study_app() -> typer.Typer:
     app = typer.Typer()
     register_turn_rate_studies(app)
 
     @app.callback()
-    def main():
+    def main():  # a callback keeps "turn-rate-adaptive" a sub-command (typer runs a lone command directly)
         pass
 
+    return app
+
+
+SHORT_RUN = ["turn-rate-adaptive", "--runs", "8", "--T", "4", "--meas", "pos+rdot", "--no-imm"]
+
+
+def test_command_writes_tables_figures_and_summary(tmp_path):
+    app = study_app()
     runner = CliRunner()
-    result = runner.invoke(app, ["turn-rate-adaptive", "--runs", "8", "--T", "4", "--meas", "pos+rdot",
-                                 "--no-imm", "--out", str(tmp_path)])
+    result = runner.invoke(app, [*SHORT_RUN, "--out", str(tmp_path)], terminal_width=200)
     assert result.exit_code == 0, result.output
     assert "ω-RMSE" in result.output and "PASS" in result.output
-    import json
-
-    import pandas as pd
-
+    assert "position RMSE [m]" in result.output  # the unit is printed, not read as rich markup
     summary = json.loads((tmp_path / "turn_rate_adaptive.json").read_text())
     assert summary["runs"] == 8 and len(summary["results"]) == 5
     table = pd.read_csv(tmp_path / "turn_rate_adaptive.csv")
     assert len(table) == 25 and set(table["verdict"]) <= {"ok", "off"}
     assert (tmp_path / "turn_rate_T4_pos_rdot_qa1.png").stat().st_size > 10_000
-    bad = runner.invoke(app, ["turn-rate-adaptive", "--meas", "sonar", "--out", str(tmp_path)])
-    assert bad.exit_code == 2
+
+
+@pytest.mark.parametrize("option, value, message", [("--meas", "sonar", "unknown sonar"), ("--T", "0", "positive"),
+                                                     ("--T", "4,x", "comma-separated"), ("--runs", "0", ">= 1"),
+                                                     ("--q-dep", "-1", ">= 0"), ("--truth-rate", "middle", "one of")])
+def test_command_rejects_bad_options_with_exit_2(tmp_path, option, value, message):
+    result = CliRunner().invoke(study_app(), ["turn-rate-adaptive", option, value, "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert message in result.output
+    assert not any(tmp_path.iterdir())  # nothing ran
+
+
+def test_check_exits_1_when_an_expected_behaviour_fails(tmp_path, monkeypatch):
+    monkeypatch.setattr(turn_rate_study, "expected_checks", lambda summaries: [Check("forced", "1", "2", False)])
+    app = study_app()
+    result = CliRunner().invoke(app, [*SHORT_RUN, "--out", str(tmp_path), "--check"], terminal_width=200)
+    assert result.exit_code == 1 and "FAIL" in result.output and "1 expected behaviour(s) failed" in result.output
+    assert CliRunner().invoke(app, [*SHORT_RUN, "--out", str(tmp_path)]).exit_code == 0
 
 
 def test_median_sigma_w_sits_at_the_floor_on_straight_legs_and_jumps_in_turn_1(doppler_t1):

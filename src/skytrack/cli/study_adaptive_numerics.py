@@ -41,30 +41,28 @@ def _print(table: Table) -> None:
 
 
 def _fail(message: str) -> None:
-    error_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
-    raise typer.Exit(code=2)
+    from skytrack.cli.study_verdicts import fail_option
+
+    fail_option(error_console, message)
+
+
+def _check_deterministic(trials: int) -> None:
+    """``--trials`` of a deterministic study: accepted for a uniform command line, but not below 1."""
+    if trials < 1:
+        _fail(f"--trials must be >= 1, got {trials}")
 
 
 def _finish(name: str, checks, paths, check: bool) -> None:
     """Print the expected values with PASS/FAIL and the written files; exit 1 under ``--check`` on a failure."""
-    table = Table(title=f"{name}: expected values (spec 002 §5, §6)")
-    for column in ("expected value", "measured", "spec (tolerance)", "verdict"):
-        table.add_column(column, overflow="fold")
-    for item in checks:
-        table.add_row(escape(item.name), escape(item.measured), escape(item.expected),
-                      "[green]PASS[/green]" if item.passed else "[red]FAIL[/red]")
+    from skytrack.cli.study_verdicts import report_failures, verdicts_table
+
     if checks:
-        _print(table)
+        _print(verdicts_table(f"{name}: expected values (spec 002 §5, §6)", checks,
+                              ("expected value", "measured", "spec (tolerance)", "verdict")))
     else:
         console.print("[yellow]no expected values checked (the spec's values hold for its run lengths)[/yellow]")
     console.print("wrote " + ", ".join(str(p) for p in paths))
-    failed = [c.name for c in checks if not c.passed]
-    if failed:
-        console.print(f"[red]{len(failed)} expected value(s) failed: {escape(', '.join(failed))}[/red]")
-        if check:
-            raise typer.Exit(code=1)
-    else:
-        console.print(f"[green]all {len(checks)} expected values PASS[/green]")
+    report_failures(console, checks, check, all_held=f"all {len(checks)} expected values PASS")
 
 
 def gain_conditioning(
@@ -76,6 +74,7 @@ def gain_conditioning(
     """E5: cond of hV_xhᵀ + V_η, gain errors (explicit / Cholesky) and short vs Joseph update, ρ = 10⁰ … 10¹⁴."""
     from skytrack.studies.adaptive_numerics import gain_conditioning as study
 
+    _check_deterministic(trials)
     table, checks, paths = study.run_gain_conditioning(out)
     summary = Table(title="gain-conditioning: V_x = R diag(ρ, 1) Rᵀ, h = [[1, 0.4], [0.2, 1]], V_η = diag(1, 0.5); "
                           "errors against exact rational arithmetic")
@@ -105,6 +104,7 @@ def poor_experiment(
     """E6: TV12(b) — the R16 diagnostic and its advice for V0 (baseline) and the remedies V1-V3, both modes."""
     from skytrack.studies.adaptive_numerics import poor_experiment as study
 
+    _check_deterministic(trials)
     table, checks, paths = study.run_poor_experiment(out)
     summary = Table(title="poor-experiment: TV12(b), 100 steps, T = 1 s (matched and literal mode of R16)")
     for column in ("variant", "diag P(100|100)", "literal ratio", "matched: verdict (flagged)",
@@ -125,8 +125,8 @@ def poor_experiment(
 
 def vw_estimator(
     out: OutOption = Path("study-vw-estimator"),
-    seed: Annotated[int, typer.Option("--seed", help="Part (c) draws with default_rng([seed, ord('c')]), (d) with "
-                                      "[seed, ord('d')]; every λ and weighting sees the same draws.")] = 1,
+    seed: Annotated[int, typer.Option("--seed", help="Part (c) draws with default_rng((seed, ord('c'))), (d) with "
+                                      "default_rng((seed, ord('d'))); every λ and weighting sees the same draws.")] = 1,
     trials: Annotated[int, typer.Option("--trials", help="Seeds (tracks of one bank) per configuration; TV11 asks "
                                         "≥ 20.")] = 20,
     steps_c: Annotated[int, typer.Option("--steps-c", help="Measurements of part (c) (TV11: 20 001).")] = 20_001,

@@ -39,8 +39,9 @@ JsonOption = Annotated[bool, typer.Option("--json", help="Print the JSON summary
 
 
 def _fail(message: str) -> None:
-    error_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
-    raise typer.Exit(code=2)
+    from skytrack.cli.study_verdicts import fail_option
+
+    fail_option(error_console, message)
 
 
 def _table(title: str, columns, rows) -> Table:
@@ -63,24 +64,17 @@ def _verdict(passed: bool) -> str:
 
 def _finish(name: str, checks, paths: dict, check: bool, as_json: bool) -> None:
     """Print the expected values with PASS/FAIL (or the JSON summary); exit 1 under ``--check`` on a failure."""
-    failed = [c.name for c in checks if not c.passed]
+    from skytrack.cli.study_verdicts import report_failures, verdicts_table
+
     if as_json:
         typer.echo(Path(paths["json"]).read_text(), nl=False)
-    else:
-        table = Table(title=escape(f"{name}: expected values (spec 002 §5, §6)"))
-        for column in ("expected value", "computed", "spec", "verdict"):
-            table.add_column(column, overflow="fold")
-        for c in checks:
-            table.add_row(escape(c.name), escape(c.measured), escape(c.expected),
-                          "[green]PASS[/green]" if c.passed else "[red]FAIL[/red]")
-        print_wide(console, table)
-        console.print("wrote " + ", ".join(str(p) for p in paths.values()))
-        if failed:
-            console.print(f"[red]{len(failed)} expected value(s) failed: {escape(', '.join(failed))}[/red]")
-        else:
-            console.print(f"[green]all {len(checks)} expected values hold[/green]")
-    if failed and check:
-        raise typer.Exit(code=1)
+        if check and not all(c.passed for c in checks):
+            raise typer.Exit(code=1)
+        return
+    print_wide(console, verdicts_table(f"{name}: expected values (spec 002 §5, §6)", checks,
+                                       ("expected value", "computed", "spec", "verdict")))
+    console.print("wrote " + ", ".join(str(p) for p in paths.values()))
+    report_failures(console, checks, check, all_held=f"all {len(checks)} expected values hold")
 
 
 def _check_common(trials: int) -> None:
@@ -145,7 +139,7 @@ def ident_radar(
     out: OutOption = Path("study-ident-radar"),
     seed: SeedOption = 1,
     trials: TrialsOption = 1,
-    T: Annotated[float, typer.Option("--T", help="Sampling interval T [s] along the E3 track (§6 E2: 1).")] = 1.0,
+    T: Annotated[float, typer.Option("--T", help="Sampling interval T in s along the E3 track (§6 E2: 1).")] = 1.0,
     window: Annotated[int, typer.Option("--window", help="R8 window N_w for the track and set-up verdicts (paper: 1).")] = 1,
     check: CheckOption = False,
     as_json: JsonOption = False,

@@ -25,8 +25,9 @@ error_console = Console(stderr=True)
 
 
 def _fail(message: str) -> None:
-    error_console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
-    raise typer.Exit(code=2)
+    from skytrack.cli.study_verdicts import fail_option
+
+    fail_option(error_console, message)
 
 
 def _parse_periods(text: str) -> tuple[float, ...]:
@@ -58,10 +59,11 @@ def _setup_tables(result, T: float, measurement: str, q_accel: float):
 
     group = [s for s in result.summaries if s.T == T and s.measurement == measurement]
     label = f"T = {T:g} s, {sc.MEASUREMENT_LABELS[measurement]}, q_a = {q_accel:g} m²/s³"
-    omega = Table(title=f"ω-RMSE [°/s] (prototype) verdict — {label}")
-    position = Table(title=f"position RMSE [m] — {label}")
+    # escaped: rich would read "[m]" as a markup tag and drop the unit
+    omega = Table(title=escape(f"ω-RMSE [°/s] (prototype) verdict — {label}"))
+    position = Table(title=escape(f"position RMSE [m] — {label}"))
     for table in (omega, position):
-        table.add_column("configuration")
+        table.add_column("configuration", no_wrap=True)
         for name in sc.WINDOW_NAMES:
             table.add_column(name, justify="right")
         table.add_column("diverged", justify="right")
@@ -83,8 +85,9 @@ def _setup_tables(result, T: float, measurement: str, q_accel: float):
 def turn_rate_adaptive(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Output folder (default study-turn-rate-adaptive, "
                                              "…-qdep0 for --q-dep 0).")] = None,
-    runs: Annotated[int, typer.Option("--runs", help="Monte Carlo runs per configuration (rows of one filter).")] = 100,
-    seed: Annotated[int, typer.Option("--seed", help="Seed; the draws of period T use SeedSequence([seed, 1000 T]), "
+    runs: Annotated[int, typer.Option("--runs", "--trials", help="Monte Carlo runs per configuration (rows of one "
+                                      "filter).")] = 100,
+    seed: Annotated[int, typer.Option("--seed", help="Seed; the draws of period T use SeedSequence((seed, 1000·T)), "
                                       "shared by every configuration and both measurement sets.")] = 1,
     periods: Annotated[str, typer.Option("--T", help="Sampling periods in s, comma-separated.")] = "1,4",
     meas: Annotated[str, typer.Option("--meas", help="Measurement sets: pos, pos+rdot (comma-separated).")] =
@@ -101,6 +104,8 @@ def turn_rate_adaptive(
     """E3/E4 (spec 002 §6): adaptive turn-rate identification vs fixed V_w, literal (7) and an IMM."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from skytrack.cli.study_output import print_wide
+    from skytrack.cli.study_verdicts import report_failures, verdicts_table
     from skytrack.studies.turn_rate import scenario as sc
     from skytrack.studies.turn_rate.study import job_count, run_study
 
@@ -124,20 +129,12 @@ def turn_rate_adaptive(
     for T in period_list:
         for measurement in measurement_list:
             for table in _setup_tables(result, T, measurement, q_dep):
-                console.print(table)
-    verdicts = Table(title=f"turn-rate-adaptive: expected behaviour (spec 002 §6 E3/E4; {runs} runs, seed {seed})")
-    for column in ("expected behaviour", "measured", "spec", "verdict"):
-        verdicts.add_column(column, overflow="fold")
-    for c in result.checks:
-        verdicts.add_row(escape(c.name), escape(c.measured), escape(c.expected),
-                         "[green]PASS[/green]" if c.passed else "[red]FAIL[/red]")
-    console.print(verdicts)
+                print_wide(console, table)  # numbers are not squeezed into "0.10…" on a narrow terminal
+    console.print(verdicts_table(f"turn-rate-adaptive: expected behaviour (spec 002 §6 E3/E4; {runs} runs, seed {seed})",
+                                 result.checks, ("expected behaviour", "measured", "spec", "verdict")))
     console.print("wrote " + ", ".join(str(p) for p in result.paths))
-    failed = [c.name for c in result.checks if not c.passed]
-    if failed:
-        console.print(f"[red]{len(failed)} expected behaviour(s) failed: {escape('; '.join(failed))}[/red]")
-        if check:
-            raise typer.Exit(code=1)
+    report_failures(console, result.checks, check, what="expected behaviour(s)",
+                    all_held=f"all {len(result.checks)} expected behaviours hold")
 
 
 def register_turn_rate_studies(app: typer.Typer) -> None:
