@@ -92,10 +92,13 @@ def filter_bank(tracks: int, seed: int = 2):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--matrices", type=int, default=100_000)
-    parser.add_argument("--tracks", type=int, default=10_000)
-    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--matrices", type=int, default=100_000, help="random 3 × 3 S matrices for R5 (default 10⁵)")
+    parser.add_argument("--tracks", type=int, default=10_000, help="ct-omega tracks in the R11 bank (default 10⁴)")
+    parser.add_argument("--runs", type=int, default=5, help="timed runs per figure after one warm-up (default 5)")
     args = parser.parse_args()
+    for option in ("matrices", "tracks", "runs"):
+        if getattr(args, option) < 1:  # a rate over zero steps or zero runs has no meaning
+            parser.error(f"--{option} must be >= 1, got {getattr(args, option)}")
     console = Console(width=150)  # the table stays readable in a pipe or a log
     console.print(f"date {dt.datetime.now(dt.timezone.utc):%Y-%m-%d %H:%M UTC}")
     console.print(f"machine: {machine()}")

@@ -204,7 +204,8 @@ def test_vw_estimator_command_short_run(tmp_path):
 @pytest.mark.parametrize("args, message", [(["gain-conditioning", "--trials", "0"], "--trials must be >= 1"),
                                            (["poor-experiment", "--trials", "-1"], "--trials must be >= 1"),
                                            (["vw-estimator", "--trials", "1"], "at least 2"),
-                                           (["vw-estimator", "--steps-d", "10"], "--steps-d at least 11")])
+                                           (["vw-estimator", "--steps-d", "10"], "--steps-d at least 11"),
+                                           (["vw-estimator", "--seed", "-1"], "non-negative")])
 def test_bad_options_exit_2_before_anything_runs(tmp_path, args, message):
     result = CliRunner().invoke(app(), [*args, "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and message in result.output

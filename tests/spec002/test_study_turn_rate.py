@@ -180,7 +180,8 @@ def test_command_writes_tables_figures_and_summary(tmp_path):
 
 @pytest.mark.parametrize("option, value, message", [("--meas", "sonar", "unknown sonar"), ("--T", "0", "positive"),
                                                      ("--T", "4,x", "comma-separated"), ("--runs", "0", ">= 1"),
-                                                     ("--q-dep", "-1", ">= 0"), ("--truth-rate", "middle", "one of")])
+                                                     ("--q-dep", "-1", ">= 0"), ("--truth-rate", "middle", "one of"),
+                                                     ("--seed", "-1", "non-negative")])
 def test_command_rejects_bad_options_with_exit_2(tmp_path, option, value, message):
     result = CliRunner().invoke(study_app(), ["turn-rate-adaptive", option, value, "--out", str(tmp_path)])
     assert result.exit_code == 2

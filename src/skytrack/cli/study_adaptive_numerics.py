@@ -140,6 +140,8 @@ def vw_estimator(
 
     if trials < 2:
         _fail(f"--trials must be at least 2 (a spread across seeds), got {trials}")
+    if seed < 0:
+        _fail(f"--seed must be >= 0 (numpy seeds are non-negative), got {seed}")
     if steps_c < 2 or steps_d < 11:
         _fail("--steps-c must be at least 2 and --steps-d at least 11")
     table, checks, paths = run_with_progress(

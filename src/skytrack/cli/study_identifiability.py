@@ -77,7 +77,7 @@ def _finish(name: str, checks, paths: dict, check: bool, as_json: bool) -> None:
     report_failures(console, checks, check, all_held=f"all {len(checks)} expected values hold")
 
 
-def _check_common(trials: int) -> None:
+def _check_trials(trials: int) -> None:
     if trials < 1:
         _fail(f"--trials must be >= 1, got {trials}")
 
@@ -98,7 +98,7 @@ def ident_example(
     """E1: the paper's example — det M = f16², κ, σ_χ over f16; TV2 local vs global; TV6 window (spec 002 §6)."""
     from skytrack.studies.identifiability import example
 
-    _check_common(trials)
+    _check_trials(trials)
     result = example.run_example(out)
     if not as_json:
         sweep = result["sweep"]
@@ -147,7 +147,7 @@ def ident_radar(
     """E2: which parameters radar data identify — TV8, TV9, σ_χ(t) along the E3 track, set-ups with culprits."""
     from skytrack.studies.identifiability import radar_setups, radar_study
 
-    _check_common(trials)
+    _check_trials(trials)
     if not T > 0:
         _fail(f"--T must be > 0, got {T}")
     if not 1 <= window <= 10:

@@ -111,6 +111,8 @@ def turn_rate_adaptive(
 
     if runs < 1:
         _fail(f"--runs must be >= 1, got {runs}")
+    if seed < 0:
+        _fail(f"--seed must be >= 0 (numpy seeds are non-negative), got {seed}")
     if not q_dep >= 0:
         _fail(f"--q-dep must be >= 0, got {q_dep}")
     if truth_rate not in sc.TRUTH_RATE_CHOICES:
