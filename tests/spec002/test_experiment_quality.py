@@ -109,15 +109,6 @@ TV12B = {
 }
 
 
-def assert_printed(actual, printed, rtol=1e-6):
-    """Within ``rtol`` relative, or within half a unit of the last printed decimal where the
-    printed value has fewer digits than that (0.107246 stands for 0.10724581, 2.6e-6 relative)."""
-    for value, text in zip(actual, printed.split(), strict=True):
-        decimals = len(text.split(".")[1]) if "." in text else 0
-        expected = float(text)
-        assert abs(value - expected) <= max(rtol * abs(expected), 0.5 * 10.0**-decimals * (1 + 1e-9)), (value, text)
-
-
 def remedy_run(variant):
     """(model, H, V_η, channel names, P(k|k) for k = 1 … 100) of one TV12(b) variant, set up by study E6."""
     run = poor_experiment.remedy_run(variant)
@@ -129,7 +120,8 @@ def test_tv12b_remedies_table(variant):
     diag, literal, poorly, r5_verdict, indistinguishable = TV12B[variant]
     model, H, V_eta, channels, P = remedy_run(variant)
     assert P.shape == (100, model.dim, model.dim)
-    assert_printed(np.diag(P[-1]), diag)
+    # 1e-6 relative, or half a unit of the last printed decimal (0.107246 stands for 0.10724581)
+    assert poor_experiment.printed_match(np.diag(P[-1]), diag, rtol=1e-6), (np.diag(P[-1]), diag)
     checks = check_identifiability(H=H, F=model.F(np.zeros(model.dim), 1.0), h_a=model.h_a,
                                    noise_cov=V_eta, names=model.parameters)
     assert checks.verdicts == [r5_verdict]
