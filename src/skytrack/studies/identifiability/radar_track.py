@@ -2,8 +2,8 @@
 
 The E3 truth (sensor at the origin): coordinated turn (R2) from p(0) = (0, 30 km), v(0) = (200, 0) m/s,
 ω = 0 on [0, 60) s, +3°/s on [60, 92), 0 on [92, 152), −1.5°/s on [152, 212), 0 on [212, 272]; the
-step t_k → t_{k+1} uses ω(t_k).  Along it :func:`skytrack.analysis.identifiability_along.check_along`
-(R10) decides the parameter ω of ``ct-omega`` on every interval [t_{k−1}, t_k] for the measurement
+step t_k → t_{k+1} uses ω(t_k) (simulated by :mod:`skytrack.studies.turn_rate.scenario`).  Along it
+:func:`skytrack.analysis.identifiability_along.check_along` (R10) decides the parameter ω of ``ct-omega`` on every interval [t_{k−1}, t_k] for the measurement
 sets pos (σ_pos = 20 m), ṙ (σ_ṙ = 0.5 m/s) and pos+ṙ, with T = 1 s, and reports σ_χ (R9): the std of
 the noise-weighted one-step LS estimate of ω with x(k−1) known.  ψ is the angle between the line of
 sight u = p/|p| and the velocity at t_k (where H_k is linearised).
@@ -26,14 +26,11 @@ from skytrack.analysis.identifiability_along import check_along
 from skytrack.models.augmented import ct_omega
 from skytrack.models.augmented_measurements import measurement_for
 from skytrack.studies.identification.common import Check, pyplot
+from skytrack.studies.turn_rate import scenario
 
-#: E3's turn-rate schedule: (start time [s], ω [°/s]) — ω holds until the next start
-OMEGA_SCHEDULE_DEG = ((0.0, 0.0), (60.0, 3.0), (92.0, 0.0), (152.0, -1.5), (212.0, 0.0))
-DURATION_S = 272.0
-P0 = (0.0, 30_000.0)
-V0 = (200.0, 0.0)
-SIGMA_POS_M = 20.0
-SIGMA_RDOT_MPS = 0.5
+#: E2 observes E3's track with E3's sensor accuracies
+SIGMA_POS_M = scenario.SIGMA_POSITION
+SIGMA_RDOT_MPS = scenario.SIGMA_RANGE_RATE
 #: σ_az of the polar set-ups (not given by §6 E2; TV8's value)
 SIGMA_AZ_RAD = math.radians(0.1)
 TRACK_SIGMA = {"x": SIGMA_POS_M, "y": SIGMA_POS_M, "rdot": SIGMA_RDOT_MPS, "r": SIGMA_POS_M, "az": SIGMA_AZ_RAD}
@@ -54,23 +51,16 @@ PSI_ATOL_DEG = 0.05
 TANGENTIAL_WINDOW_S = (1.0, 60.0)
 
 
-def omega_at(t: np.ndarray) -> np.ndarray:
-    """E3's ω(t) in rad/s."""
-    starts = np.array([s for s, _ in OMEGA_SCHEDULE_DEG])
-    values = np.radians([w for _, w in OMEGA_SCHEDULE_DEG])
-    return values[np.searchsorted(starts, np.asarray(t, float), side="right") - 1]
-
-
 def truth_states(T: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Times t_k = kT on [0, 272] s and ct-omega states (x, y, vx, vy, ω(t_k)); x_{k+1} = φ(x_k, T)."""
-    times = np.arange(0.0, DURATION_S + 1e-9, T)
-    omega = omega_at(times)
-    model = ct_omega()
-    states = np.zeros((len(times), 5))
-    states[0] = (*P0, *V0, omega[0])
-    for k in range(len(times) - 1):  # a recursion in time: each state is the previous one propagated
-        states[k + 1] = model.phi(states[k], T)
-        states[k + 1, 4] = omega[k + 1]
+    """Times t_k = kT on [0, 272] s and ct-omega states (x, y, vx, vy, ω(t_k)) of the E3 truth.
+
+    The trajectory is study E3's (:func:`skytrack.studies.turn_rate.scenario.simulate_truth`: the step
+    t_k → t_{k+1} turns at ω(t_k)); the ω column is replaced by ω(t_k) because the interval
+    [t_k, t_{k+1}] is linearised at x(t_k), whose turn rate is the one that step uses.
+    """
+    times, states = scenario.simulate_truth(T, rate_at="start")
+    states = states.copy()
+    states[:, 4] = scenario.turn_rate(times)
     return times, states
 
 
