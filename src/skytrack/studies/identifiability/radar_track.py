@@ -4,9 +4,10 @@ The E3 truth (sensor at the origin): coordinated turn (R2) from p(0) = (0, 30 km
 ω = 0 on [0, 60) s, +3°/s on [60, 92), 0 on [92, 152), −1.5°/s on [152, 212), 0 on [212, 272]; the
 step t_k → t_{k+1} uses ω(t_k) (simulated by :mod:`skytrack.studies.turn_rate.scenario`).  Along it
 :func:`skytrack.analysis.identifiability_along.check_along` (R10) decides the parameter ω of
-``ct-omega`` on every interval [t_{k−1}, t_k] for the measurement sets pos (σ_pos = 20 m), ṙ (σ_ṙ = 0.5 m/s) and pos+ṙ, with T = 1 s, and reports σ_χ (R9): the std of
-the noise-weighted one-step LS estimate of ω with x(k−1) known.  ψ is the angle between the line of
-sight u = p/|p| and the velocity at t_k (where H_k is linearised).
+``ct-omega`` on every interval [t_{k−1}, t_k] for the measurement sets pos (σ_pos = 20 m), ṙ
+(σ_ṙ = 0.5 m/s) and pos+ṙ, with T = 1 s, and reports σ_χ (R9): the std of the noise-weighted
+one-step LS estimate of ω with x(k−1) known.  ψ is the angle between the line of sight u = p/|p|
+and the velocity at t_k (where H_k is linearised).
 
 Expected (§6 E2): pos σ_χ constant at σ_pos/(T² v/2) = 11.46°/s (position moves by T²v/2 per rad/s);
 ṙ and pos+ṙ ≈ σ_ṙ/(T v sin ψ) = 0.143°/s in tangential flight, rising to ≈ 29°/s (ṙ) and
