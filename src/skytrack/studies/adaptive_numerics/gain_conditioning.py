@@ -18,7 +18,8 @@ Expected (§6 E5): cond ≈ 1.16ρ; relative gain error of both methods ≈ 10�
 and is indefinite from ρ ≈ 10¹⁰ (λ_min ≈ −1.4·10²); the Joseph form stays PSD with relative error
 ≤ 2·10⁻⁴ up to ρ = 10¹⁴ with the default Cholesky gain.  Found here (reported, not a spec number):
 the Joseph form with the explicit-inverse gain stays PSD but its error grows like (δΓ)²ρ (about
-6·10⁻⁵ at ρ = 10¹⁰, 10⁹ at 10¹⁴), and the short form with the Cholesky gain stays positive definite.  Round-off figures are checked within a factor :data:`ROUNDOFF_FACTOR`.
+6·10⁻⁵ at ρ = 10¹⁰, 10⁹ at 10¹⁴), and the short form with the Cholesky gain stays positive definite.
+Round-off figures are checked within a factor :data:`ROUNDOFF_FACTOR`.
 """
 
 from __future__ import annotations
