@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from skytrack.filters.identifiability_step import TAU_REL, TAU_ZERO
+from skytrack.filters.kernels import _cholesky_row
 
 S_CODE, S_QA, S_MQ, S_SMIN, S_SMAX, S_FORGET, S_PRECISION, S_ON, S_OFF, S_MEMORY, S_VW0, S_N0, S_PRIOR = range(13)
 SETTINGS_SIZE = 13
@@ -125,51 +126,32 @@ def predict_row(code, x, P, T, ndim, p, q, vw, x_out, F, A, G, Vx, FP, position_
     for i in range(n):
         for j in range(p):
             G[i, j] = F[i, nm + j]
-    t = abs(T)
-    if position_only:
-        # the position block of A = F P F^T + Q_dep and of V_x (position rows of F only)
-        for a in range(ndim):
-            i = 2 * a
-            for j in range(n):
-                acc = 0.0
-                for l in range(n):
-                    acc += F[i, l] * P[l, j]
-                FP[i, j] = acc
-        for a in range(ndim):
-            for b in range(a, ndim):
-                acc = 0.0
-                for l in range(n):
-                    acc += FP[2 * a, l] * F[2 * b, l]
-                if a == b:
-                    acc += q * t**3 / 3.0
-                A[2 * a, 2 * b] = acc
-                A[2 * b, 2 * a] = acc
-                for c in range(p):
-                    for d in range(p):
-                        acc += G[2 * a, c] * vw[c, d] * G[2 * b, d]
-                Vx[2 * a, 2 * b] = acc
-                Vx[2 * b, 2 * a] = acc
-        return
-    # A = F P F^T + Q_dep(|T|)
-    for i in range(n):
+    # A = F P F^T + Q_dep(|T|) and V_x, on every row or (position_only) on the position rows only
+    stride, count = (2, ndim) if position_only else (1, n)
+    for r in range(count):
+        i = stride * r
         for j in range(n):
             acc = 0.0
             for l in range(n):
                 acc += F[i, l] * P[l, j]
             FP[i, j] = acc
-    for i in range(n):
-        for j in range(i, n):
+    for r in range(count):
+        i = stride * r
+        for c in range(r, count):
+            j = stride * c
             acc = 0.0
             for l in range(n):
                 acc += FP[i, l] * F[j, l]
             A[i, j] = acc
             A[j, i] = acc
+    t = abs(T)
     for a in range(ndim):
         A[2 * a, 2 * a] += q * t**3 / 3.0
-        A[2 * a, 2 * a + 1] += q * t * t / 2.0
-        A[2 * a + 1, 2 * a] += q * t * t / 2.0
-        A[2 * a + 1, 2 * a + 1] += q * t
-    prior_covariance(A, G, vw, n, p, Vx)
+        if not position_only:
+            A[2 * a, 2 * a + 1] += q * t * t / 2.0
+            A[2 * a + 1, 2 * a] += q * t * t / 2.0
+            A[2 * a + 1, 2 * a + 1] += q * t
+    prior_covariance(A, G, vw, stride, count, p, Vx)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -195,33 +177,19 @@ def predict_rows(code, x, P, T, switched, ndim, p, settings, x_out, P_out, A_out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def prior_covariance(A, G, vw, n, p, Vx):
-    """A6: V_x = A + G V̂_w Gᵀ (symmetric by construction)."""
-    for i in range(n):
-        for j in range(i, n):
+def prior_covariance(A, G, vw, stride, count, p, Vx):
+    """A6: V_x = A + G V̂_w Gᵀ (symmetric by construction) on rows and columns ``0, stride, ..``
+    (``count`` of them)."""
+    for r in range(count):
+        i = stride * r
+        for c in range(r, count):
+            j = stride * c
             acc = A[i, j]
             for a in range(p):
                 for b in range(p):
                     acc += G[i, a] * vw[a, b] * G[j, b]
             Vx[i, j] = acc
             Vx[j, i] = acc
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _lower_cholesky(M, m, L):
-    """Lower Cholesky factor of the symmetric ``M`` (m x m) into ``L``; False if not positive definite."""
-    for a in range(m):
-        for b in range(a + 1):
-            acc = 0.5 * (M[a, b] + M[b, a])
-            for l in range(b):
-                acc -= L[a, l] * L[b, l]
-            if a == b:
-                if acc <= 0.0:
-                    return False
-                L[a, a] = np.sqrt(acc)
-            else:
-                L[a, b] = acc / L[b, b]
-    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -248,7 +216,7 @@ def adapt_row(nu, A, G, R, m, ndim, p, settings, memory, state_row, count_index,
             C[a, b] = A[2 * a, 2 * b] + R[a, b]
     # A4: R5 on S whitened by V_eta = R
     Lr = np.zeros((m, m))
-    if not _lower_cholesky(R, m, Lr):
+    if not _cholesky_row(R, Lr):
         return False
     if m == 2:
         half_trace = 0.5 * (R[0, 0] + R[1, 1])
@@ -286,7 +254,7 @@ def adapt_row(nu, A, G, R, m, ndim, p, settings, memory, state_row, count_index,
             return False
     # A5.1-A5.3 with W = C^-1: Y = Lc^-1 S, u = Lc^-1 nu, N = Y^T Y, w = N^-1 Y^T u, L C L^T = N^-1
     Lc = np.zeros((m, m))
-    if not _lower_cholesky(C, m, Lc):
+    if not _cholesky_row(C, Lc):
         return False
     Y = np.empty((m, p))
     u = np.empty(m)

@@ -26,10 +26,8 @@ from numba import njit
 from skytrack.association.kernels import assign_clusters
 from skytrack.filters.adaptive_tracking_kernels import (S_MEMORY, S_MQ, S_OFF, S_ON, S_QA, S_SMAX, S_SMIN, adapt_row,
                                                         predict_row, prior_covariance, project_row)
-from skytrack.models.conversion_kernels import place_2d
-from skytrack.tracker.imm_stage_kernel import _solve_d2
-from skytrack.tracker.kernels import _innovation_factor, _max_eig_sym, joseph_position_update, search_candidates, \
-    window_plots, write_hits
+from skytrack.tracker.kernels import (_innovation_factor, joseph_position_update, pair_plot, search_candidates,
+                                      search_row, solve_d2, window_plots, write_hits)
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 
 
@@ -74,14 +72,7 @@ def gate_stage_adaptive(tracks, free, x_all, P_all, t_all, alt_all, forced, code
         row = tracks[k]
         _row_prediction(x_all[row], P_all[row], t_ref[k] - t_all[row], forced, code, ndim, p, settings, scratch,
                         True)
-        speed2 = 0.0
-        for a in range(ndim):
-            ref_pos[k, a] = x_pred[2 * a]
-            speed2 += x_pred[2 * a + 1] ** 2
-            for b in range(ndim):
-                P_pos[a, b] = Vx[2 * a, 2 * b]
-        sigma_t[k] = np.sqrt(max(_max_eig_sym(P_pos, ndim), 0.0))
-        margin[k] = np.sqrt(speed2) * margin_s + 1.0
+        search_row(x_pred, Vx, ndim, margin_s, k, ref_pos, sigma_t, margin, P_pos)
     plot_pos, plot_cov = window_plots(free, plot_pos_all, plot_cov_all)
     out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
@@ -102,21 +93,16 @@ def gate_stage_adaptive(tracks, free, x_all, P_all, t_all, alt_all, forced, code
         col = free[j]
         _row_prediction(x_all[row], P_all[row], plot_time_all[col] - t_all[row], forced, code, ndim, p, settings,
                         scratch, True)
-        if replace_height and not np.isfinite(plot_mode_c_all[col]) and np.isfinite(alt_all[row]):
-            place_2d(plot_range_all[col], plot_azimuth_all[col], alt_all[row], sensor_alt, earth, var_r, var_az,
-                     var_h, rot, origin, pair_pos[m], pair_cov[m])
-        else:
-            for a in range(3):
-                pair_pos[m, a] = plot_pos_all[col, a]
-                for b in range(3):
-                    pair_cov[m, a, b] = plot_cov_all[col, a, b]
+        pair_plot(replace_height, np.isfinite(plot_mode_c_all[col]), alt_all[row], col, plot_pos_all, plot_cov_all,
+                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos[m],
+                  pair_cov[m])
         for a in range(ndim):
             x_pos[a] = x_pred[2 * a]
             for b in range(ndim):
                 P_pos[a, b] = Vx[2 * a, 2 * b]
         if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue
-        total, logdet = _solve_d2(L, pair_pos[m], x_pos, ndim, w)
+        total, logdet = solve_d2(L, pair_pos[m], x_pos, ndim, w)
         if total > gate:
             continue
         d2_out[m] = total
@@ -166,7 +152,7 @@ def update_write_adaptive(rows, plot_rows, pair_pos, pair_cov, pair_d2, forced, 
         if not adapted:
             x_pred[count_index + 1] += 1.0
         project_row(memory, p, settings[S_SMIN], settings[S_SMAX], vw)
-        prior_covariance(A, G, vw, n, p, Vx)
+        prior_covariance(A, G, vw, 1, n, p, Vx)
         for a in range(m):
             for b in range(m):
                 R[a, b] = Vx[2 * a, 2 * b]

@@ -32,13 +32,14 @@ from numba import njit
 
 from skytrack.association.kernels import assign_clusters
 from skytrack.filters.imm_kernels import mix_row, mix_scratch, predict_mode, predict_mode_position
-from skytrack.models.conversion_kernels import place_2d
 from skytrack.tracker.evidence import LOG_2PI
 from skytrack.tracker.kernels import (
     _innovation_factor,
     _max_eig_sym,
     joseph_position_update,
+    pair_plot,
     search_candidates,
+    solve_d2,
     window_plots,
     write_hits,
 )
@@ -63,21 +64,6 @@ def _matched_position(xp, P_pos, c, ndim, x_pos, P_match):
                 acc += c[j] * (P_pos[j, a, b] + (xp[j, 2 * a] - x_pos[a]) * (xp[j, 2 * b] - x_pos[b]))
             P_match[a, b] = acc
             P_match[b, a] = acc
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _solve_d2(L, z, x_pos, ndim, w):
-    """``d^2`` and ``ln det S`` from the Cholesky factor ``L`` of ``S`` and the innovation ``z - x_pos``."""
-    total = 0.0
-    logdet = 0.0
-    for a in range(ndim):
-        logdet += 2.0 * np.log(L[a, a])
-        acc = z[a] - x_pos[a]
-        for l in range(a):
-            acc -= L[a, l] * w[l]
-        w[a] = acc / L[a, a]
-        total += w[a] * w[a]
-    return total, logdet
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -152,18 +138,13 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         c = mixed_c[k]
         for jm in range(M):
             predict_mode_position(modes[jm], mixed_x[k, jm], mixed_P[k, jm], dt, ndim, xp[jm], mode_blocks[jm], G)
-        if replace_height and not np.isfinite(plot_mode_c_all[col]) and np.isfinite(alt_all[row]):
-            place_2d(plot_range_all[col], plot_azimuth_all[col], alt_all[row], sensor_alt, earth, var_r, var_az,
-                     var_h, rot, origin, pair_pos[m], pair_cov[m])
-        else:
-            for a in range(3):
-                pair_pos[m, a] = plot_pos_all[col, a]
-                for b in range(3):
-                    pair_cov[m, a, b] = plot_cov_all[col, a, b]
+        pair_plot(replace_height, np.isfinite(plot_mode_c_all[col]), alt_all[row], col, plot_pos_all, plot_cov_all,
+                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos[m],
+                  pair_cov[m])
         _matched_position(xp, mode_blocks, c, ndim, x_pos, P_pos)
         if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue
-        total, _ = _solve_d2(L, pair_pos[m], x_pos, ndim, w)
+        total, _ = solve_d2(L, pair_pos[m], x_pos, ndim, w)
         if total > gate:
             continue
         best = -np.inf
@@ -176,7 +157,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
             if not _innovation_factor(mode_blocks[jm], pair_cov[m], ndim, L):
                 log_terms[jm] = -np.inf
                 continue
-            d2_j, logdet_j = _solve_d2(L, pair_pos[m], mode_pos, ndim, w)
+            d2_j, logdet_j = solve_d2(L, pair_pos[m], mode_pos, ndim, w)
             log_terms[jm] = np.log(c[jm]) - 0.5 * (d2_j + logdet_j + ndim * LOG_2PI)
             best = max(best, log_terms[jm])
         if best == -np.inf:
@@ -244,7 +225,7 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
                     for b in range(n):
                         P_all[k, jm, a, b] = Pp[a, b]
                 continue
-            d2_j, logdet_j = _solve_d2(L, pair_pos[pair], mode_pos, m, w)
+            d2_j, logdet_j = solve_d2(L, pair_pos[pair], mode_pos, m, w)
             log_post[jm] = (np.log(c[jm]) if c[jm] > 0.0 else -np.inf) - 0.5 * (d2_j + logdet_j + m * LOG_2PI)
             best = max(best, log_post[jm])
             joseph_position_update(xp, Pp, pair_pos[pair], pair_cov[pair], L, m, K, y, AP, KR, x_all[k, jm],

@@ -91,6 +91,50 @@ def _max_eig_sym(M, dim):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def solve_d2(L, z, x_pos, ndim, w):
+    """``d^2`` and ``ln det S`` from the Cholesky factor ``L`` of ``S`` and the innovation ``z - x_pos``."""
+    total = 0.0
+    logdet = 0.0
+    for a in range(ndim):
+        logdet += 2.0 * np.log(L[a, a])
+        acc = z[a] - x_pos[a]
+        for l in range(a):
+            acc -= L[a, l] * w[l]
+        w[a] = acc / L[a, a]
+        total += w[a] * w[a]
+    return total, logdet
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def pair_plot(replace_height, has_mode_c, track_alt, j, plot_pos, plot_cov, plot_range, plot_azimuth, sensor_alt,
+              earth, var_r, var_az, var_h, rot, origin, out_pos, out_cov):
+    """A pair's measurement: plot ``j``'s converted position and covariance, or, for a 2-D plot
+    without Mode C, the plot re-placed at its track's Mode C altitude ``track_alt`` when it has one."""
+    if replace_height and not has_mode_c and np.isfinite(track_alt):
+        place_2d(plot_range[j], plot_azimuth[j], track_alt, sensor_alt, earth, var_r, var_az, var_h, rot, origin,
+                 out_pos, out_cov)
+        return
+    for a in range(3):
+        out_pos[a] = plot_pos[j, a]
+        for b in range(3):
+            out_cov[a, b] = plot_cov[j, a, b]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def search_row(x_pred, P_pred, ndim, margin_s, k, ref_pos, sigma_t, margin, block):
+    """Row ``k`` of the candidate search from a prediction in the ``[x, vx, ...]`` layout: its position,
+    the spread ``sqrt(lambda_max)`` of its position block (``block`` is scratch) and its speed margin."""
+    speed2 = 0.0
+    for a in range(ndim):
+        ref_pos[k, a] = x_pred[2 * a]
+        speed2 += x_pred[2 * a + 1] ** 2
+        for b in range(ndim):
+            block[a, b] = P_pred[2 * a, 2 * b]
+    sigma_t[k] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+    margin[k] = np.sqrt(speed2) * margin_s + 1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def window_plots(free, plot_pos_all, plot_cov_all):
     """Positions ``[F, 3]`` and covariances ``[F, 3, 3]`` of the window's free plots."""
     plot_pos = np.empty((len(free), 3))
@@ -172,14 +216,7 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     block = np.empty((ndim, ndim))
     for k in range(n_tracks):
         _predict_cv_row(x[k], P[k], t_ref[k] - t[k], q, scale[k], ndim, xr, Pr)
-        speed2 = 0.0
-        for a in range(ndim):
-            ref_pos[k, a] = xr[2 * a]
-            speed2 += xr[2 * a + 1] ** 2
-            for b in range(ndim):
-                block[a, b] = Pr[2 * a, 2 * b]
-        sigma_t[k] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
-        margin[k] = np.sqrt(speed2) * margin_s + 1.0
+        search_row(xr, Pr, ndim, margin_s, k, ref_pos, sigma_t, margin, block)
     # 2. candidates: plots within ``scale (s_t + s_p) + margin_t`` of the reference position
     out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
@@ -202,28 +239,14 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
         j = out_p[c]
         if ndim != 2:
             _predict_cv_position(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pos, P_pos)
-        if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
-            place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
-                     pair_pos[m], pair_cov[m])
-        else:
-            for a in range(3):
-                pair_pos[m, a] = plot_pos[j, a]
-                for b in range(3):
-                    pair_cov[m, a, b] = plot_cov[j, a, b]
+        pair_plot(replace_height, plot_has_mode_c[j], alt_m[k], j, plot_pos, plot_cov, plot_range, plot_azimuth,
+                  sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos[m], pair_cov[m])
         if ndim == 2:
             total, logdet = _d2_planar(x[k], P[k], plot_time[j] - t[k], q, scale[k], pair_pos[m], pair_cov[m])
         else:
             if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
                 continue  # S not positive definite: the pair cannot be gated
-            total = 0.0
-            logdet = 0.0
-            for a in range(ndim):
-                logdet += 2.0 * np.log(L[a, a])
-                acc = pair_pos[m, a] - x_pos[a]
-                for l in range(a):
-                    acc -= L[a, l] * w[l]
-                w[a] = acc / L[a, a]
-                total += w[a] * w[a]
+            total, logdet = solve_d2(L, pair_pos[m], x_pos, ndim, w)
         if total <= gate:
             d2_out[m] = total
             logdet_out[m] = logdet
