@@ -139,12 +139,12 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         for jm in range(M):
             predict_mode_position(modes[jm], mixed_x[k, jm], mixed_P[k, jm], dt, ndim, xp[jm], mode_blocks[jm], G)
         pair_plot(replace_height, np.isfinite(plot_mode_c_all[col]), alt_all[row], col, plot_pos_all, plot_cov_all,
-                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos[m],
-                  pair_cov[m])
+                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos, pair_cov,
+                  m)
         _matched_position(xp, mode_blocks, c, ndim, x_pos, P_pos)
         if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue
-        total, _ = solve_d2(L, pair_pos[m], x_pos, ndim, w)
+        total, _ = solve_d2(L, pair_pos, m, x_pos, ndim, w)
         if total > gate:
             continue
         best = -np.inf
@@ -157,7 +157,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
             if not _innovation_factor(mode_blocks[jm], pair_cov[m], ndim, L):
                 log_terms[jm] = -np.inf
                 continue
-            d2_j, logdet_j = solve_d2(L, pair_pos[m], mode_pos, ndim, w)
+            d2_j, logdet_j = solve_d2(L, pair_pos, m, mode_pos, ndim, w)
             log_terms[jm] = np.log(c[jm]) - 0.5 * (d2_j + logdet_j + ndim * LOG_2PI)
             best = max(best, log_terms[jm])
         if best == -np.inf:
@@ -225,7 +225,7 @@ def update_write_imm(rows, plot_rows, pair_pos, pair_cov, pair_x, pair_P, pair_c
                     for b in range(n):
                         P_all[k, jm, a, b] = Pp[a, b]
                 continue
-            d2_j, logdet_j = solve_d2(L, pair_pos[pair], mode_pos, m, w)
+            d2_j, logdet_j = solve_d2(L, pair_pos, pair, mode_pos, m, w)
             log_post[jm] = (np.log(c[jm]) if c[jm] > 0.0 else -np.inf) - 0.5 * (d2_j + logdet_j + m * LOG_2PI)
             best = max(best, log_post[jm])
             joseph_position_update(xp, Pp, pair_pos[pair], pair_cov[pair], L, m, K, y, AP, KR, x_all[k, jm],

@@ -91,13 +91,14 @@ def _max_eig_sym(M, dim):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def solve_d2(L, z, x_pos, ndim, w):
-    """``d^2`` and ``ln det S`` from the Cholesky factor ``L`` of ``S`` and the innovation ``z - x_pos``."""
+def solve_d2(L, z, row, x_pos, ndim, w):
+    """``d^2`` and ``ln det S`` from the Cholesky factor ``L`` of ``S`` and the innovation ``z[row] - x_pos``
+    (rows of 2-D arrays are indexed, not sliced: a slice in a compiled hot loop costs reference counting)."""
     total = 0.0
     logdet = 0.0
     for a in range(ndim):
         logdet += 2.0 * np.log(L[a, a])
-        acc = z[a] - x_pos[a]
+        acc = z[row, a] - x_pos[a]
         for l in range(a):
             acc -= L[a, l] * w[l]
         w[a] = acc / L[a, a]
@@ -107,17 +108,18 @@ def solve_d2(L, z, x_pos, ndim, w):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def pair_plot(replace_height, has_mode_c, track_alt, j, plot_pos, plot_cov, plot_range, plot_azimuth, sensor_alt,
-              earth, var_r, var_az, var_h, rot, origin, out_pos, out_cov):
-    """A pair's measurement: plot ``j``'s converted position and covariance, or, for a 2-D plot
-    without Mode C, the plot re-placed at its track's Mode C altitude ``track_alt`` when it has one."""
+              earth, var_r, var_az, var_h, rot, origin, pair_pos, pair_cov, m):
+    """Row ``m`` of a pair's measurement: plot ``j``'s converted position and covariance, or, for a
+    2-D plot without Mode C, the plot re-placed at its track's Mode C altitude ``track_alt`` when it
+    has one (rows indexed, not sliced, on the common path: see :func:`solve_d2`)."""
     if replace_height and not has_mode_c and np.isfinite(track_alt):
         place_2d(plot_range[j], plot_azimuth[j], track_alt, sensor_alt, earth, var_r, var_az, var_h, rot, origin,
-                 out_pos, out_cov)
+                 pair_pos[m], pair_cov[m])
         return
     for a in range(3):
-        out_pos[a] = plot_pos[j, a]
+        pair_pos[m, a] = plot_pos[j, a]
         for b in range(3):
-            out_cov[a, b] = plot_cov[j, a, b]
+            pair_cov[m, a, b] = plot_cov[j, a, b]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -216,7 +218,16 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     block = np.empty((ndim, ndim))
     for k in range(n_tracks):
         _predict_cv_row(x[k], P[k], t_ref[k] - t[k], q, scale[k], ndim, xr, Pr)
-        search_row(xr, Pr, ndim, margin_s, k, ref_pos, sigma_t, margin, block)
+        # search_row and pair_plot written out: inlined here they cost 7 % of the default tracker
+        # loop (benchmarks/against_core.py, 2026-11-25), though they are the same statements
+        speed2 = 0.0
+        for a in range(ndim):
+            ref_pos[k, a] = xr[2 * a]
+            speed2 += xr[2 * a + 1] ** 2
+            for b in range(ndim):
+                block[a, b] = Pr[2 * a, 2 * b]
+        sigma_t[k] = np.sqrt(max(_max_eig_sym(block, ndim), 0.0))
+        margin[k] = np.sqrt(speed2) * margin_s + 1.0
     # 2. candidates: plots within ``scale (s_t + s_p) + margin_t`` of the reference position
     out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
@@ -239,14 +250,20 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
         j = out_p[c]
         if ndim != 2:
             _predict_cv_position(x[k], P[k], plot_time[j] - t[k], q, scale[k], ndim, x_pos, P_pos)
-        pair_plot(replace_height, plot_has_mode_c[j], alt_m[k], j, plot_pos, plot_cov, plot_range, plot_azimuth,
-                  sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos[m], pair_cov[m])
+        if replace_height and not plot_has_mode_c[j] and np.isfinite(alt_m[k]):
+            place_2d(plot_range[j], plot_azimuth[j], alt_m[k], sensor_alt, earth, var_r, var_az, var_h, rot, origin,
+                     pair_pos[m], pair_cov[m])
+        else:
+            for a in range(3):
+                pair_pos[m, a] = plot_pos[j, a]
+                for b in range(3):
+                    pair_cov[m, a, b] = plot_cov[j, a, b]
         if ndim == 2:
             total, logdet = _d2_planar(x[k], P[k], plot_time[j] - t[k], q, scale[k], pair_pos[m], pair_cov[m])
         else:
             if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
                 continue  # S not positive definite: the pair cannot be gated
-            total, logdet = solve_d2(L, pair_pos[m], x_pos, ndim, w)
+            total, logdet = solve_d2(L, pair_pos, m, x_pos, ndim, w)
         if total <= gate:
             d2_out[m] = total
             logdet_out[m] = logdet
