@@ -30,8 +30,18 @@ The protocol's steps split R11 as follows (``timing="same"``):
 
 Presets (R14): ``ct-omega-adaptive`` V_w0 = (1e-4 rad/s)², σ_min = 1e-5 rad/s, σ_max = 2°/s per step,
 λ = 0.8, Q_dep white acceleration q_a = 1 m²/s³ per axis; ``ca-accel-adaptive`` V_w0 = (0.1 m/s²)²,
-σ_min = 1e-3 m/s², σ_max = 5 m/s² per step, λ = 0.8, Q_dep = 0.  The parameters' prior at a track's
-start is skytrack's choice (the spec is silent): ω ~ N(0, (2°/s)²) as in E3, a ~ N(0, (3 m/s²)²).
+σ_min = 1e-3 m/s², σ_max = 5 m/s² per step, λ = 0.8, Q_dep = 0.
+
+skytrack's additions for real radars (each a preset option; docs/methods/adaptive-identification.md
+gives the measurements behind them):
+
+* the manoeuvre switch psi of spec 000 S3 on Q_dep (PSD ``manoeuvre_q`` while the smoothed NIS is
+  high, and the tracker's manoeuvre gate), as the default ``kalman-psi`` filter has it;
+* a precision gate: a step adapts only when its one-step precision (L_kC_kL_kᵀ)_ii is at most
+  (``precision_fraction`` σ_max)²; an imprecise step folds the prior V_w0 into the memory in place
+  of its Q_k (its noise, clipped by Π, would otherwise raise V̂_w with nothing to bring it back);
+* the parameters' prior at a track's start (the spec is silent): ω ~ N(0, (0.2°/s)²),
+  a ~ N(0, (3 m/s²)²).
 
 This module is the numpy reference; the tracker's compiled stage
 (:mod:`skytrack.tracker.adaptive_stage_kernel`, on :mod:`skytrack.filters.adaptive_tracking_kernels`)
@@ -348,6 +358,11 @@ class AdaptiveTrackingFilter(BatchFilter):
                 limit = (self.preset.precision_fraction * self.preset.sigma_max) ** 2
                 precise = np.all(np.einsum("kpp->kp", LCL) <= limit, axis=1)
                 adapted[rows[~precise]] = False
+                # an imprecise step cannot tell V_w: it folds in the prior V_w0 in place of its Q_k, so
+                # that a memory raised by a few noisy steps returns to the prior instead of staying there
+                vague = rows[~precise]
+                count[vague] = self.preset.forgetting * count[vague] + 1.0
+                memory[vague] += (self.preset.V_w0 * np.eye(p) - memory[vague]) / count[vague, None, None]
                 rows, L_est, LCL = rows[precise], L_est[precise], LCL[precise]
             w = np.einsum("kpm,km->kp", L_est, nu[rows])
             Q = np.einsum("kp,kq->kpq", w, w) - LCL

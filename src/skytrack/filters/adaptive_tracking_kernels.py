@@ -10,7 +10,8 @@ parameters | V̄ | n_j | skipped | psi | smoothed NIS]``), used by the tracker's
 * :func:`project_row`: A5.5's Π for a scalar floor and ceiling (the presets give every parameter the
   same σ_min, σ_max), clip for p = 1, eigenvalue clamp otherwise;
 * :func:`adapt_row`: A4 (R5's zero-influence test and κ on S_k = H G whitened by V_η) and A5.1-A5.4
-  with the innovation weighting (W = C⁻¹), the precision gate and the fading memory, in place.
+  with the innovation weighting (W = C⁻¹), the precision gate (an imprecise step folds in the prior
+  V_w0) and the fading memory, in place.
 
 The settings travel as one float vector (:func:`settings_vector`, indices ``S_*``).
 """
@@ -279,8 +280,16 @@ def adapt_row(nu, A, G, R, m, ndim, p, settings, memory, state_row, count_index,
         N_inv[0, 0] = 1.0 / N[0, 0]
     else:
         N_inv = np.linalg.inv(N)
+    count = settings[S_FORGET] * state_row[count_index] + 1.0
     for i in range(p):
         if N_inv[i, i] > settings[S_PRECISION]:
+            # imprecise: the prior V_w0 takes the place of this step's Q_k (adaptive_tracking.update)
+            state_row[count_index] = count
+            for a in range(p):
+                for b in range(p):
+                    prior = settings[S_VW0] if a == b else 0.0
+                    memory[a, b] += (prior - memory[a, b]) / count
+                    state_row[nm + p + a * p + b] = memory[a, b]
             return False
     Ytu = np.empty(p)
     for i in range(p):
@@ -295,7 +304,6 @@ def adapt_row(nu, A, G, R, m, ndim, p, settings, memory, state_row, count_index,
             acc += N_inv[i, j] * Ytu[j]
         w[i] = acc
     # A5.4 fading memory
-    count = settings[S_FORGET] * state_row[count_index] + 1.0
     state_row[count_index] = count
     for i in range(p):
         for j in range(p):
