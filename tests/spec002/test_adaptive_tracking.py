@@ -151,3 +151,29 @@ def test_preset_options_are_checked():
         build_filter("ct-omega-adaptive", motion, sigma_max=1e-6)
     with pytest.raises(ValueError, match="order 2"):
         build_filter("ca-accel-adaptive", singer(2, tau=20.0, sigma_a=3.0))
+
+
+def test_imprecise_steps_fold_the_prior_into_the_memory():
+    """Steps whose one-step precision is above the gate (R = (5 km)^2 I) adapt nothing: the memory
+    V̄ raised to (1 deg/s)^2 returns to the prior V_w0 by the fading-memory recursion
+    V̄_j = V̄_{j-1} + (V_w0 - V̄_{j-1}) / n_j, n_j = lambda n_{j-1} + 1 (to 1e-12 relative), and every
+    such step counts as skipped."""
+    rows, steps, T = 3, 6, 4.0
+    filt = build_filter("ct-omega-adaptive", constant_velocity(2, 1.0), compiled=False)
+    preset = filt.preset
+    x0 = np.tile([0.0, 200.0, 30e3, 0.0], (rows, 1))
+    state = filt.initiate(x0, np.broadcast_to(np.diag([400.0, 100.0, 400.0, 100.0]), (rows, 4, 4)).copy())
+    raised = math.radians(1.0) ** 2
+    state.x[:, filt.memory_slice] = raised
+    model = ConvertedPositionModel(2, 2)
+    R = np.broadcast_to(25e6 * np.eye(2), (rows, 2, 2)).copy()
+    expected, count = raised, preset.n0
+    for k in range(steps):
+        predicted = filt.predict(state, np.full(rows, T))
+        z = predicted.estimate().x[:, [0, 2]] + 100.0
+        state, stats = filt.update(predicted, z, filt.innovate(predicted, z, model, {"R": R}))
+        count = preset.forgetting * count + 1.0
+        expected += (preset.V_w0 - expected) / count
+        assert not stats.extra["adapted"].any()
+        np.testing.assert_allclose(state.x[:, filt.memory_slice][:, 0], expected, rtol=1e-12)
+    np.testing.assert_array_equal(state.x[:, filt.skipped_index], steps)
