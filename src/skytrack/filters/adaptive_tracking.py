@@ -9,15 +9,17 @@ of spec 002's own state order).
 State layout (one row per track; the tracker's per-axis CV layout first, so that every tracker
 part reading positions and velocities by ``axis * 2`` works unchanged)::
 
-    [x, vx, y, vy(, z, vz) | parameters (p) | V̄ (p*p, row-major) | n_j | skipped]
+    [x, vx, y, vy(, z, vz) | parameters (p) | V̄ (p*p, row-major) | n_j | skipped | psi | NIS]
 
 ``ct-omega``: p = 1 (omega, rad/s, counter-clockwise > 0) turns the horizontal axes (R2's phi and
 analytic F); z is constant velocity.  ``ca-accel``: p = ndim accelerations (R3).
-The estimator's memory (the raw fading mean V̄, its count n_j and the count of steps whose
-adaptation was skipped by A4) rides in the state row as components with zero covariance: every
-bank operation (take, put, the compiled compaction) carries it, the transition keeps it, and a
+The estimator's memory (the raw fading mean V̄, its count n_j, the count of steps whose
+adaptation was skipped, and the manoeuvre switch with its smoothed NIS) rides in the state row
+as components with zero covariance: every bank operation (take, put, the compiled compaction)
+carries it, the transition keeps it, and a
 measurement cannot change it through the gain (its rows of P are zero).  ``estimate()`` is the
-CV part (what gating and output read); :attr:`AdaptiveTrackState.parameters` gives the rest.
+CV part (what gating and output read); :meth:`AdaptiveTrackingFilter.parameters` gives the
+parameters and V̂_w.
 
 The protocol's steps split R11 as follows (``timing="same"``):
 
@@ -107,7 +109,8 @@ class AdaptivePreset:
         if not 0.0 < self.manoeuvre_off <= self.manoeuvre_on:
             raise ValueError("adaptive preset: need 0 < manoeuvre_off <= manoeuvre_on")
         if not self.precision_fraction > 0:
-            raise ValueError(f"adaptive preset: precision_fraction must be > 0 (inf: no gate), got {self.precision_fraction}")
+            raise ValueError("adaptive preset: precision_fraction must be > 0 (inf: no gate), "
+                             f"got {self.precision_fraction}")
         if not 0.0 <= self.manoeuvre_memory < 1.0:
             raise ValueError(f"adaptive preset: manoeuvre_memory must be in [0, 1), got {self.manoeuvre_memory}")
 
@@ -311,7 +314,8 @@ class AdaptiveTrackingFilter(BatchFilter):
         return AdaptivePrediction(x, P, A, G)
 
     def _predict_compiled(self, state: AdaptiveTrackState, T, switched, forced: bool) -> AdaptivePrediction:
-        """:meth:`predict` by the compiled row kernel (:func:`~skytrack.filters.adaptive_tracking_kernels.predict_rows`)."""
+        """:meth:`predict` by the compiled row kernel
+        (:func:`~skytrack.filters.adaptive_tracking_kernels.predict_rows`)."""
         count, n = len(state), self.n_aug
         x = np.empty_like(state.x)
         P = np.zeros_like(state.P)

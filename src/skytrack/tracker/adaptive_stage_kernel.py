@@ -94,8 +94,8 @@ def gate_stage_adaptive(tracks, free, x_all, P_all, t_all, alt_all, forced, code
         _row_prediction(x_all[row], P_all[row], plot_time_all[col] - t_all[row], forced, code, ndim, p, settings,
                         scratch, True)
         pair_plot(replace_height, np.isfinite(plot_mode_c_all[col]), alt_all[row], col, plot_pos_all, plot_cov_all,
-                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos, pair_cov,
-                  m)
+                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos,
+                  pair_cov, m)
         for a in range(ndim):
             x_pos[a] = x_pred[2 * a]
             for b in range(ndim):

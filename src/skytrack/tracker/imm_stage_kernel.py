@@ -139,8 +139,8 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
         for jm in range(M):
             predict_mode_position(modes[jm], mixed_x[k, jm], mixed_P[k, jm], dt, ndim, xp[jm], mode_blocks[jm], G)
         pair_plot(replace_height, np.isfinite(plot_mode_c_all[col]), alt_all[row], col, plot_pos_all, plot_cov_all,
-                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos, pair_cov,
-                  m)
+                  plot_range_all, plot_azimuth_all, sensor_alt, earth, var_r, var_az, var_h, rot, origin, pair_pos,
+                  pair_cov, m)
         _matched_position(xp, mode_blocks, c, ndim, x_pos, P_pos)
         if not _innovation_factor(P_pos, pair_cov[m], ndim, L):
             continue
