@@ -26,8 +26,8 @@ from numba import njit
 from skytrack.association.kernels import assign_clusters
 from skytrack.filters.adaptive_tracking_kernels import (S_MEMORY, S_MQ, S_OFF, S_ON, S_QA, S_SMAX, S_SMIN, adapt_row,
                                                         predict_row, prior_covariance, project_row)
-from skytrack.tracker.kernels import (_innovation_factor, joseph_position_update, pair_plot, search_candidates,
-                                      search_row, solve_d2, window_plots, write_hits)
+from skytrack.tracker.kernels import (_innovation_factor, gate_buffers, joseph_position_update, pair_plot,
+                                      search_candidates, search_row, solve_d2, window_plots, write_hits)
 from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
 
 
@@ -76,14 +76,7 @@ def gate_stage_adaptive(tracks, free, x_all, P_all, t_all, alt_all, forced, code
     plot_pos, plot_cov = window_plots(free, plot_pos_all, plot_cov_all)
     out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
-    pair_pos = np.empty((count, 3))
-    pair_cov = np.empty((count, 3, 3))
-    d2_out = np.empty(count)
-    logdet_out = np.empty(count)
-    kept_t = np.empty(count, np.int64)
-    kept_p = np.empty(count, np.int64)
-    L = np.zeros((ndim, ndim))
-    w = np.empty(ndim)
+    pair_pos, pair_cov, d2_out, logdet_out, kept_t, kept_p, L, w = gate_buffers(count, ndim)
     x_pos = np.empty(ndim)
     m = 0
     for cand in range(count):

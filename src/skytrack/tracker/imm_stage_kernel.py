@@ -36,6 +36,7 @@ from skytrack.tracker.evidence import LOG_2PI
 from skytrack.tracker.kernels import (
     _innovation_factor,
     _max_eig_sym,
+    gate_buffers,
     joseph_position_update,
     pair_plot,
     search_candidates,
@@ -118,14 +119,7 @@ def gate_stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mo
     out_t, out_p = search_candidates(ref_pos, sigma_t, margin, plot_pos, plot_cov, ndim, search_scale)
     count = len(out_t)
     # 2. every candidate at its plot's time: the moment-matched gate and the mixture likelihood
-    pair_pos = np.empty((count, 3))
-    pair_cov = np.empty((count, 3, 3))
-    d2_out = np.empty(count)
-    logdet_out = np.empty(count)
-    kept_t = np.empty(count, np.int64)
-    kept_p = np.empty(count, np.int64)
-    L = np.zeros((ndim, ndim))
-    w = np.empty(ndim)
+    pair_pos, pair_cov, d2_out, logdet_out, kept_t, kept_p, L, w = gate_buffers(count, ndim)
     mode_pos = np.empty(ndim)
     log_terms = np.empty(M)
     m = 0

@@ -136,6 +136,14 @@ def search_row(x_pred, P_pred, ndim, margin_s, k, ref_pos, sigma_t, margin, bloc
     margin[k] = np.sqrt(speed2) * margin_s + 1.0
 
 
+@njit(cache=True, nogil=True)
+def gate_buffers(count, ndim):
+    """The exact gate's outputs for ``count`` candidates (each pair's measurement ``[count, 3]`` and
+    ``[count, 3, 3]``, ``d^2``, ``ln det S``, track and plot indices) and its Cholesky scratch ``L``, ``w``."""
+    return (np.empty((count, 3)), np.empty((count, 3, 3)), np.empty(count), np.empty(count),
+            np.empty(count, np.int64), np.empty(count, np.int64), np.zeros((ndim, ndim)), np.empty(ndim))
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def window_plots(free, plot_pos_all, plot_cov_all):
     """Positions ``[F, 3]`` and covariances ``[F, 3, 3]`` of the window's free plots."""
@@ -234,16 +242,9 @@ def gate_stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, fo
     # 3.-5. exact gate of every candidate at its plot's time, on the position block of the
     #       prediction only (the update predicts the chosen pairs in full); pairs inside are
     #       written to the next free slot ``m`` (compaction as we go)
-    pair_pos = np.empty((count, 3))
-    pair_cov = np.empty((count, 3, 3))
-    d2_out = np.empty(count)
-    logdet_out = np.empty(count)
-    kept_t = np.empty(count, np.int64)
-    kept_p = np.empty(count, np.int64)
+    pair_pos, pair_cov, d2_out, logdet_out, kept_t, kept_p, L, w = gate_buffers(count, ndim)
     x_pos = np.empty(ndim)
     P_pos = np.empty((ndim, ndim))
-    L = np.zeros((ndim, ndim))
-    w = np.empty(ndim)
     m = 0
     for c in range(count):
         k = out_t[c]
