@@ -23,12 +23,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.association.kernels import assign_clusters
 from skytrack.filters.adaptive_tracking_kernels import (S_MEMORY, S_MQ, S_OFF, S_ON, S_QA, S_SMAX, S_SMIN, adapt_row,
                                                         predict_row, prior_covariance, project_row)
 from skytrack.tracker.kernels import (_innovation_factor, gate_buffers, joseph_position_update, pair_plot,
                                       search_candidates, search_row, solve_d2, window_plots, write_hits)
-from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
+from skytrack.tracker.stage_kernel import assign_pairs
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -198,12 +197,10 @@ def stage_adaptive(tracks, free, x_all, P_all, t_all, alt_all, forced, code, ndi
         tracks, free, x_all, P_all, t_all, alt_all, forced, code, ndim, p, settings, t_ref, plot_time, plot_pos,
         plot_cov, plot_mode_c, plot_range, plot_azimuth, search_scale, margin_s, gate, replace_height, sensor_alt,
         earth, var_r, var_az, var_h, rot, origin)
-    gain, cost, offered, miss_cost = pair_evidence(
+    gain, pick, rows, plot_rows = assign_pairs(
         tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
-        iff, plot_iff, icao24, plot_mode_s)
-    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
-    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
+        iff, plot_iff, icao24, plot_mode_s, max_dense)
     update_write_adaptive(rows, plot_rows, position[pick], covariance[pick], d2[pick], forced, code, ndim, p, settings,
                           x_all, P_all, two_point, t_all, n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24,
                           iff, identity, plot_time, plot_mode_c, plot_mode3a, plot_mode_s, plot_iff, gain[pick], score,

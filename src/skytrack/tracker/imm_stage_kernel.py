@@ -30,7 +30,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from skytrack.association.kernels import assign_clusters
 from skytrack.filters.imm_kernels import mix_row, mix_scratch, predict_mode, predict_mode_position
 from skytrack.tracker.evidence import LOG_2PI
 from skytrack.tracker.kernels import (
@@ -44,7 +43,7 @@ from skytrack.tracker.kernels import (
     window_plots,
     write_hits,
 )
-from skytrack.tracker.stage_kernel import chosen_rows, pair_evidence
+from skytrack.tracker.stage_kernel import assign_pairs
 from skytrack.tracker.window_kernels import matched_position_block
 
 
@@ -260,12 +259,10 @@ def stage_imm(tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, m
         tracks, free, x_all, P_all, mu_all, t_all, alt_all, forced_mode, modes, sojourn, fixed, t_ref, plot_time,
         plot_pos, plot_cov, plot_mode_c, plot_range, plot_azimuth, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
-    gain, cost, offered, miss_cost = pair_evidence(
+    gain, pick, rows, plot_rows = assign_pairs(
         tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
-        iff, plot_iff, icao24, plot_mode_s)
-    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
-    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
+        iff, plot_iff, icao24, plot_mode_s, max_dense)
     track_of_pair = kt[pick]
     update_write_imm(rows, plot_rows, position[pick], covariance[pick], mixed_x[track_of_pair], mixed_P[track_of_pair],
                      mixed_c[track_of_pair], modes, x_all,

@@ -38,12 +38,10 @@ def stage_cv(tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced,
         tracks, free, x_all, P_all, t_all, alt_all, psi_all, q_big, forced, t_ref, plot_time, plot_pos, plot_cov,
         plot_mode_c, plot_range, plot_azimuth, q, ndim, search_scale, margin_s, gate,
         replace_height, sensor_alt, earth, var_r, var_az, var_h, rot, origin)
-    gain, cost, offered, miss_cost = pair_evidence(
+    gain, pick, rows, plot_rows = assign_pairs(
         tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
         clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
-        iff, plot_iff, icao24, plot_mode_s)
-    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
-    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
+        iff, plot_iff, icao24, plot_mode_s, max_dense)
     update_write_cv(rows, plot_rows, d2[pick], position[pick], covariance[pick], q, q_big, ndim, forced, psi_enabled,
                     psi_on, psi_off, psi_memory, two_point, x_all, P_all, psi_all, nis_avg, filter_updates, t_all,
                     n_updates, n_misses, z_hint, alt_all, status, mode3a, icao24, iff, identity, plot_time, plot_mode_c,
@@ -138,6 +136,23 @@ def pair_evidence(tracks, free, kt, kp, d2, logdet, ndim, gate, gate_miss, cost_
     for k in range(len(tracks)):
         miss_cost[k] = -cheapest[k]
     return gain, cost, offered[:m], miss_cost
+
+
+@njit(cache=True, nogil=True)
+def assign_pairs(tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid,
+                 clutter_params, clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c,
+                 mode3a, alt_all, t_all, iff, plot_iff, icao24, plot_mode_s, max_dense):
+    """The part every compiled stage shares after its gate: the gated pairs' score gains and costs
+    (:func:`pair_evidence`), the assignment of small clusters and large ones
+    (:func:`~skytrack.association.kernels.assign_clusters`) and the chosen pairs: returns the gains, the
+    chosen indices into the gated pairs and their bank and plot rows."""
+    gain, cost, offered, miss_cost = pair_evidence(
+        tracks, free, kt, kp, d2, logdet, ndim, gate, miss, cost_rule, log_pd, log_miss, clutter_grid, clutter_params,
+        clutter_log_area, ssr, plot_time, plot_range, plot_azimuth, plot_mode3a, plot_mode_c, mode3a, alt_all, t_all,
+        iff, plot_iff, icao24, plot_mode_s)
+    chosen = assign_clusters(kt[offered], kp[offered], cost[offered], miss_cost, len(tracks), len(free), max_dense)
+    pick, rows, plot_rows = chosen_rows(offered, chosen, kt, kp, tracks, free)
+    return gain, pick, rows, plot_rows
 
 
 @njit(cache=True, nogil=True)
