@@ -289,14 +289,20 @@ class CompiledStages:
         return rows, plot_rows
 
 
+def compiled_association(association) -> bool:
+    """Whether the association runs through the compiled stages: compiled, a scorer of
+    :data:`COMPILED_SCORERS`, the ``gnn`` assigner, global mode."""
+    return bool(association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
+                and association.mode == "global")
+
+
 def fused_adaptive(filter, association) -> tuple | None:
     """``(code, p, settings)`` for :func:`~skytrack.tracker.adaptive_stage_kernel.stage_adaptive` when
     the compiled stage applies: a compiled adaptive augmented filter (spec 002 R14) without a
     recorder, and the compiled GNN association with a scorer of :data:`COMPILED_SCORERS` in global mode."""
     if not (isinstance(filter, AdaptiveTrackingFilter) and filter.compiled) or filter.recorder.active:
         return None
-    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
-            and association.mode == "global"):
+    if not compiled_association(association):
         return None
     return filter.code, filter.p, settings_vector(filter.code, filter.preset)
 
@@ -320,8 +326,7 @@ def fused_imm(filter, association) -> tuple | None:
         return None
     if any(mode.recorder.active or mode.form != "joseph" for mode in filter.modes):
         return None
-    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
-            and association.mode == "global"):
+    if not compiled_association(association):
         return None
     M = filter.n_modes
     if isinstance(filter.transition, SojournTransition):
@@ -345,7 +350,6 @@ def fused_cv_q(filter, association) -> float | None:
     axis = motion.axes[0]
     if not (motion.identical_axes and type(axis) is ConstantVelocityAxis):
         return None
-    if not (association.compiled and association.scorer in COMPILED_SCORERS and association.assigner == "gnn"
-            and association.mode == "global"):
+    if not compiled_association(association):
         return None
     return float(axis.q)
