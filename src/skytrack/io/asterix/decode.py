@@ -1,0 +1,183 @@
+"""Vectorised decoding of ASTERIX CAT048 plots and CAT034 service messages (issue 11 item 1-2).
+
+``framing.scan_records`` finds every record and the byte offsets of the items read; the
+items are then decoded with numpy byte arithmetic over all records at once:
+
+- I048/010 SAC/SIC, I048/140 time of day (1/128 s), I048/020 TYP (first octet),
+  I048/040 RHO (1/256 NM) and THETA (360/2^16 deg), I048/070 Mode 3/A (12 bits, octal),
+  I048/090 flight level (14-bit two's complement, 1/4 FL), I048/220 aircraft address;
+- I034/000 message type, I034/010 SAC/SIC, I034/030 time of day, I034/020 sector azimuth
+  (360/2^8 deg).
+
+The result is in the plots layout of docs/formats.md (``range_m``, ``azimuth_deg``,
+``mode3a`` octal text, ``mode_c_ft``, ``mode_s`` hex text; missing values NaN / None)
+plus ``sac``, ``sic``, ``time_of_day_s`` and ``detection_type`` (I048/020 TYP, -1 when absent).
+``time`` is the time of day unwrapped over midnight per SAC/SIC (CAT048 and CAT034
+together, in input order): a step back of more than 12 h adds a day, a step forward of
+more than 12 h takes one away, so ``time`` counts seconds from midnight of the day of that
+sensor's first message.  Validity bits (I048/070 V/G/L, I048/090 V/G) are not read.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from skytrack.io.asterix import units as u
+from skytrack.io.asterix.framing import ITEMS_READ, scan_records
+from skytrack.io.asterix.problems import (
+    NO_MESSAGE_TYPE,
+    NO_POSITION,
+    PROBLEM_KINDS,
+    AsterixDecodeError,
+    AsterixProblem,
+    DecodeProblems,
+)
+
+
+def _unsigned(data: np.ndarray, offsets: np.ndarray, n_bytes: int) -> np.ndarray:
+    """Big-endian unsigned integers of ``n_bytes`` at ``offsets`` (0 where the offset is -1)."""
+    at = np.where(offsets >= 0, offsets, 0)
+    value = np.zeros(offsets.size, np.int64)
+    for k in range(n_bytes):
+        value = (value << 8) | data[at + k]
+    return np.where(offsets >= 0, value, 0)
+
+
+def _octal_text(codes: np.ndarray, present: np.ndarray) -> np.ndarray:
+    digits = [(codes >> shift) & 7 for shift in (9, 6, 3, 0)]
+    text = np.char.add(np.char.add(digits[0].astype(str), digits[1].astype(str)),
+                       np.char.add(digits[2].astype(str), digits[3].astype(str)))
+    return np.where(present, text.astype(object), None)
+
+
+def _hex_text(addresses: np.ndarray, present: np.ndarray) -> np.ndarray:
+    text = np.char.zfill(np.char.lower(np.char.mod("%x", addresses)), 6)
+    return np.where(present, text.astype(object), None)
+
+
+def unwrap_time_of_day(time_of_day_s: np.ndarray, sensor_key: np.ndarray) -> np.ndarray:
+    """Seconds since midnight of each sensor's first message day (see the module docstring)."""
+    order = np.argsort(sensor_key, kind="stable")
+    key, t = sensor_key[order], time_of_day_s[order]
+    step = np.diff(t)
+    same = key[1:] == key[:-1]
+    days = np.where(same & (step < -u.SECONDS_PER_DAY / 2), 1, 0) - np.where(same & (step > u.SECONDS_PER_DAY / 2), 1, 0)
+    total = np.concatenate([[0], np.cumsum(days)])
+    first = np.concatenate([[True], ~same])
+    group_start = np.maximum.accumulate(np.where(first, np.arange(key.size), 0)) if key.size else key
+    days_since_first = total - total[group_start]
+    unwrapped = np.empty_like(t)
+    unwrapped[order] = t + u.SECONDS_PER_DAY * days_since_first
+    return unwrapped
+
+
+@dataclass
+class DecodedAsterix:
+    """Plots (CAT048) and service messages (CAT034) as column arrays, and the problems met."""
+
+    plots: dict[str, np.ndarray]
+    service: dict[str, np.ndarray]
+    problems: DecodeProblems
+
+    def plots_frame(self) -> pd.DataFrame:
+        return pd.DataFrame(self.plots)
+
+    def north_marker_times(self) -> dict[tuple[int, int], np.ndarray]:
+        """``time`` of the north markers (I034/000 = 1) per (SAC, SIC), in input order."""
+        s = self.service
+        north = s["message_type"] == u.NORTH_MARKER
+        keys = sorted({(int(a), int(b)) for a, b in zip(s["sac"][north], s["sic"][north])})
+        return {k: s["time"][north & (s["sac"] == k[0]) & (s["sic"] == k[1])] for k in keys}
+
+
+def _column(items: np.ndarray, cat: int, item: str) -> np.ndarray:
+    return items[:, ITEMS_READ[cat].index(item)]
+
+
+def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict: bool = False,
+                   sensor_names: Mapping[tuple[int, int], str] | None = None) -> DecodedAsterix:
+    """Decode CAT048 plots and CAT034 service messages from ASTERIX bytes.
+
+    Lenient (default): problems are counted in ``problems`` with their byte offsets and
+    decoding resumes at the next block (a record without I048/040 or I034/000 is skipped
+    and counted).  ``strict=True`` raises :class:`AsterixDecodeError` at the first problem.
+    ``sensor_names`` maps (SAC, SIC) to the ``sensor`` column; otherwise it is ``"SAC/SIC"``.
+    """
+    buf = np.frombuffer(bytes(data), np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8, copy=False)
+    records, raw_problems, n_blocks = scan_records(buf)
+    problems = [AsterixProblem(PROBLEM_KINDS[int(c)], int(o), int(b), int(d), int(s))
+                for c, o, b, d, s in zip(*(raw_problems[k] for k in ("code", "offset", "block", "detail", "skipped")))]
+    items = records["items"]
+    cat = records["cat"]
+    start = records["start"]
+
+    # which records can be used, then one time unwrap over both categories
+    is_plot = cat == 48
+    is_service = cat == 34
+    no_position = is_plot & (_column(items, 48, "040") < 0)
+    no_type = is_service & (_column(items, 34, "000") < 0)
+    for mask, kind in ((no_position, NO_POSITION), (no_type, NO_MESSAGE_TYPE)):
+        for i in np.flatnonzero(mask):
+            end = start[i + 1] if i + 1 < start.size and records["block"][i + 1] == records["block"][i] else -1
+            problems.append(AsterixProblem(kind, int(start[i]), int(records["block"][i]), 0,
+                                           int(end - start[i]) if end >= 0 else 0))
+    problems.sort(key=lambda p: p.offset)
+    if strict and problems:
+        raise AsterixDecodeError(problems[0])
+    is_plot &= ~no_position
+    is_service &= ~no_type
+
+    # the columns of I048/010 and I034/010 (and 140 / 030) are the same: column 0 and 1 / 2
+    sac_sic = _unsigned(buf, np.where(is_plot, _column(items, 48, "010"), _column(items, 34, "010")), 2)
+    time_offsets = np.where(is_plot, _column(items, 48, "140"), _column(items, 34, "030"))
+    has_time = time_offsets >= 0
+    time_of_day = np.where(has_time, _unsigned(buf, time_offsets, 3) * u.TIME_LSB_S, np.nan)
+    used = (is_plot | is_service) & has_time
+    time = np.full(cat.size, np.nan)
+    time[used] = unwrap_time_of_day(time_of_day[used], sac_sic[used])
+    sac, sic = sac_sic >> 8, sac_sic & 0xFF
+    has_010 = np.where(is_plot, _column(items, 48, "010"), _column(items, 34, "010")) >= 0
+    if sensor_names is None:
+        names = np.char.add(np.char.add(sac.astype(str), "/"), sic.astype(str)).astype(object)
+    else:
+        names = np.array([sensor_names.get((int(a), int(b)), f"{a}/{b}") for a, b in zip(sac, sic)], dtype=object)
+    names = np.where(has_010, names, None)
+    sac = np.where(has_010, sac, -1)
+    sic = np.where(has_010, sic, -1)
+
+    p = items[is_plot]
+    position = _unsigned(buf, p[:, ITEMS_READ[48].index("040")], 4)
+    mode3a_at, level_at = p[:, ITEMS_READ[48].index("070")], p[:, ITEMS_READ[48].index("090")]
+    address_at, typ_at = p[:, ITEMS_READ[48].index("220")], p[:, ITEMS_READ[48].index("020")]
+    level = _unsigned(buf, level_at, 2) & 0x3FFF
+    level = np.where(level >= 1 << 13, level - (1 << 14), level)
+    plots = {
+        "time": time[is_plot],
+        "sensor": names[is_plot],
+        "range_m": (position >> 16) * u.RHO_LSB_M,
+        "azimuth_deg": (position & 0xFFFF) * u.THETA_LSB_DEG,
+        "mode3a": _octal_text(_unsigned(buf, mode3a_at, 2) & 0x0FFF, mode3a_at >= 0),
+        "mode_c_ft": np.where(level_at >= 0, level * u.FLIGHT_LEVEL_LSB_FT, np.nan),
+        "mode_s": _hex_text(_unsigned(buf, address_at, 3), address_at >= 0),
+        "sac": sac[is_plot],
+        "sic": sic[is_plot],
+        "time_of_day_s": time_of_day[is_plot],
+        "detection_type": np.where(typ_at >= 0, _unsigned(buf, typ_at, 1) >> 5, -1),
+    }
+    s = items[is_service]
+    azimuth_at = s[:, ITEMS_READ[34].index("020")]
+    service = {
+        "time": time[is_service],
+        "sensor": names[is_service],
+        "message_type": _unsigned(buf, s[:, ITEMS_READ[34].index("000")], 1),
+        "azimuth_deg": np.where(azimuth_at >= 0, _unsigned(buf, azimuth_at, 1) * u.SECTOR_LSB_DEG, np.nan),
+        "sac": sac[is_service],
+        "sic": sic[is_service],
+        "time_of_day_s": time_of_day[is_service],
+    }
+    report = DecodeProblems(problems=problems, blocks=n_blocks, records=int(cat.size))
+    return DecodedAsterix(plots=plots, service=service, problems=report)
