@@ -29,9 +29,9 @@ import pandas as pd
 from skytrack.io.asterix import units as u
 from skytrack.io.asterix.framing import ITEMS_READ, scan_records
 from skytrack.io.asterix.problems import (
-    NO_MESSAGE_TYPE,
-    NO_POSITION,
+    MISSING_ITEM,
     PROBLEM_KINDS,
+    REQUIRED_ITEMS,
     AsterixDecodeError,
     AsterixProblem,
     DecodeProblems,
@@ -48,6 +48,8 @@ def _unsigned(data: np.ndarray, offsets: np.ndarray, n_bytes: int) -> np.ndarray
 
 
 def _octal_text(codes: np.ndarray, present: np.ndarray) -> np.ndarray:
+    if codes.size == 0:
+        return np.empty(0, object)
     digits = [(codes >> shift) & 7 for shift in (9, 6, 3, 0)]
     text = np.char.add(np.char.add(digits[0].astype(str), digits[1].astype(str)),
                        np.char.add(digits[2].astype(str), digits[3].astype(str)))
@@ -55,6 +57,8 @@ def _octal_text(codes: np.ndarray, present: np.ndarray) -> np.ndarray:
 
 
 def _hex_text(addresses: np.ndarray, present: np.ndarray) -> np.ndarray:
+    if addresses.size == 0:
+        return np.empty(0, object)
     text = np.char.zfill(np.char.lower(np.char.mod("%x", addresses)), 6)
     return np.where(present, text.astype(object), None)
 
@@ -103,8 +107,8 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
     """Decode CAT048 plots and CAT034 service messages from ASTERIX bytes.
 
     Lenient (default): problems are counted in ``problems`` with their byte offsets and
-    decoding resumes at the next block (a record without I048/040 or I034/000 is skipped
-    and counted).  ``strict=True`` raises :class:`AsterixDecodeError` at the first problem.
+    decoding resumes at the next block; a record without a required item (plots: I048/010,
+    140, 040; service messages: I034/010, 000, 030) is skipped and counted.  ``strict=True`` raises :class:`AsterixDecodeError` at the first problem.
     ``sensor_names`` maps (SAC, SIC) to the ``sensor`` column; otherwise it is ``"SAC/SIC"``.
     """
     buf = np.frombuffer(bytes(data), np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8, copy=False)
@@ -118,36 +122,34 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
     # which records can be used, then one time unwrap over both categories
     is_plot = cat == 48
     is_service = cat == 34
-    no_position = is_plot & (_column(items, 48, "040") < 0)
-    no_type = is_service & (_column(items, 34, "000") < 0)
-    for mask, kind in ((no_position, NO_POSITION), (no_type, NO_MESSAGE_TYPE)):
-        for i in np.flatnonzero(mask):
-            end = start[i + 1] if i + 1 < start.size and records["block"][i + 1] == records["block"][i] else -1
-            problems.append(AsterixProblem(kind, int(start[i]), int(records["block"][i]), 0,
-                                           int(end - start[i]) if end >= 0 else 0))
+    usable = np.zeros(cat.size, bool)
+    for category, items_needed in REQUIRED_ITEMS.items():
+        of_category = cat == category
+        usable |= of_category
+        for item in items_needed:
+            missing = of_category & usable & (_column(items, category, item) < 0)
+            usable &= ~missing
+            for i in np.flatnonzero(missing):  # one problem per skipped record, for its first missing item
+                same_block_next = i + 1 < start.size and records["block"][i + 1] == records["block"][i]
+                problems.append(AsterixProblem(MISSING_ITEM[category, item], int(start[i]), int(records["block"][i]),
+                                               0, int(start[i + 1] - start[i]) if same_block_next else 0))
     problems.sort(key=lambda p: p.offset)
     if strict and problems:
         raise AsterixDecodeError(problems[0])
-    is_plot &= ~no_position
-    is_service &= ~no_type
+    is_plot &= usable
+    is_service &= usable
 
     # the columns of I048/010 and I034/010 (and 140 / 030) are the same: column 0 and 1 / 2
     sac_sic = _unsigned(buf, np.where(is_plot, _column(items, 48, "010"), _column(items, 34, "010")), 2)
     time_offsets = np.where(is_plot, _column(items, 48, "140"), _column(items, 34, "030"))
-    has_time = time_offsets >= 0
-    time_of_day = np.where(has_time, _unsigned(buf, time_offsets, 3) * u.TIME_LSB_S, np.nan)
-    used = (is_plot | is_service) & has_time
+    time_of_day = _unsigned(buf, time_offsets, 3) * u.TIME_LSB_S
     time = np.full(cat.size, np.nan)
-    time[used] = unwrap_time_of_day(time_of_day[used], sac_sic[used])
+    time[usable] = unwrap_time_of_day(time_of_day[usable], sac_sic[usable])
     sac, sic = sac_sic >> 8, sac_sic & 0xFF
-    has_010 = np.where(is_plot, _column(items, 48, "010"), _column(items, 34, "010")) >= 0
     if sensor_names is None:
         names = np.char.add(np.char.add(sac.astype(str), "/"), sic.astype(str)).astype(object)
     else:
         names = np.array([sensor_names.get((int(a), int(b)), f"{a}/{b}") for a, b in zip(sac, sic)], dtype=object)
-    names = np.where(has_010, names, None)
-    sac = np.where(has_010, sac, -1)
-    sic = np.where(has_010, sic, -1)
 
     p = items[is_plot]
     position = _unsigned(buf, p[:, ITEMS_READ[48].index("040")], 4)

@@ -17,8 +17,11 @@ UNKNOWN_CATEGORY = "unknown category"
 TRUNCATED_RECORD = "truncated record"
 UNSUPPORTED_ITEM = "unsupported item"
 EMPTY_RECORD = "empty record"
-NO_POSITION = "record without I048/040"
-NO_MESSAGE_TYPE = "record without I034/000"
+#: a record without an item skytrack needs (plots: I048/010, 140, 040; service: I034/010, 000, 030)
+REQUIRED_ITEMS = {48: ("010", "140", "040"), 34: ("010", "000", "030")}
+MISSING_ITEM = {(cat, item): f"record without I{cat:03d}/{item}" for cat, items in REQUIRED_ITEMS.items()
+                for item in items}
+NO_POSITION = MISSING_ITEM[48, "040"]
 
 PROBLEM_KINDS = {
     1: BAD_BLOCK_LENGTH,
@@ -49,9 +52,7 @@ class AsterixProblem:
             UNSUPPORTED_ITEM: f"FRN {self.detail}",
             TRUNCATED_RECORD: f"record needs more bytes than its block holds (FRN {self.detail})",
             EMPTY_RECORD: "FSPEC without items",
-            NO_POSITION: "plot skipped",
-            NO_MESSAGE_TYPE: "service message skipped",
-        }.get(self.kind, str(self.detail))
+        }.get(self.kind, "record skipped" if self.kind in MISSING_ITEM.values() else str(self.detail))
         return f"byte offset {self.offset} (block {self.block}): {self.kind}: {what}; {self.skipped_bytes} bytes skipped"
 
 
