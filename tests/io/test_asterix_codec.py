@@ -86,6 +86,7 @@ def test_every_cat048_record_equals_libasterix(encoded):
         assert p["azimuth_deg"][i] == pytest.approx(_sub(rec, "040", "THETA").as_quantity("°"), abs=1e-12)
         mode3a = _sub(rec, "070", "MODE3A")
         assert p["mode3a"][i] == (None if mode3a is None else mode3a.as_string())
+        assert p["mode3a_code"][i] == (-1 if mode3a is None else mode3a.as_uint())
         level = _sub(rec, "090", "FL")
         if level is None:
             assert np.isnan(p["mode_c_ft"][i])
@@ -93,6 +94,7 @@ def test_every_cat048_record_equals_libasterix(encoded):
             assert p["mode_c_ft"][i] == pytest.approx(level.as_quantity("FL") * 100.0, abs=1e-9)
         address = rec.get_item("220")
         assert p["mode_s"][i] == (None if address is None else f"{address.variation.content.as_uint():06x}")
+        assert p["mode_s_address"][i] == (-1 if address is None else address.variation.content.as_uint())
 
 
 def test_decoded_plots_equal_the_encoded_plots_within_half_an_lsb(encoded):
@@ -115,6 +117,14 @@ def test_decoded_plots_equal_the_encoded_plots_within_half_an_lsb(encoded):
     primary = plots["sensor"] != "ssr"
     expected = np.select([has_s & primary, has_s, has_ssr & primary, has_ssr, primary], [7, 5, 3, 2, 1], 0)
     assert np.array_equal(p["detection_type"], expected)
+
+
+def test_sensor_names_come_from_sac_sic_when_given(encoded):
+    plots, data, _ = encoded
+    names = {ids: name for name, ids in SAC_SIC.items() if name != "ssr"}
+    decoded = decode_asterix(data, sensor_names=names)
+    expected = plots["sensor"].iloc[np.argsort(plots["time"].to_numpy(), kind="stable")].replace({"ssr": "0/255"})
+    assert list(decoded.plots["sensor"]) == list(expected)
 
 
 def test_blocks_are_category_runs_of_at_most_the_given_records(encoded):

@@ -11,7 +11,8 @@ items are then decoded with numpy byte arithmetic over all records at once:
 
 The result is in the plots layout of docs/formats.md (``range_m``, ``azimuth_deg``,
 ``mode3a`` octal text, ``mode_c_ft``, ``mode_s`` hex text; missing values NaN / None)
-plus ``sac``, ``sic``, ``time_of_day_s`` and ``detection_type`` (I048/020 TYP, -1 when absent).
+plus ``sac``, ``sic``, ``time_of_day_s``, ``detection_type`` (I048/020 TYP) and the integer
+codes ``mode3a_code`` and ``mode_s_address`` (-1 when the item is absent).
 ``time`` is the time of day unwrapped over midnight per SAC/SIC (CAT048 and CAT034
 together, in input order): a step back of more than 12 h adds a day, a step forward of
 more than 12 h takes one away, so ``time`` counts seconds from midnight of the day of that
@@ -47,20 +48,21 @@ def _unsigned(data: np.ndarray, offsets: np.ndarray, n_bytes: int) -> np.ndarray
     return np.where(offsets >= 0, value, 0)
 
 
+#: the 4 096 Mode 3/A codes as 4 octal digits, indexed by the code
+_OCTAL_CODES = np.array([f"{code:04o}" for code in range(4096)], dtype=object)
+
+
 def _octal_text(codes: np.ndarray, present: np.ndarray) -> np.ndarray:
-    if codes.size == 0:
-        return np.empty(0, object)
-    digits = [(codes >> shift) & 7 for shift in (9, 6, 3, 0)]
-    text = np.char.add(np.char.add(digits[0].astype(str), digits[1].astype(str)),
-                       np.char.add(digits[2].astype(str), digits[3].astype(str)))
-    return np.where(present, text.astype(object), None)
+    return np.where(present, _OCTAL_CODES[codes], None)
 
 
-def _hex_text(addresses: np.ndarray, present: np.ndarray) -> np.ndarray:
-    if addresses.size == 0:
+def _text_by_value(values: np.ndarray, present: np.ndarray, text) -> np.ndarray:
+    """``text(v)`` for every value, formatted once per distinct value (few aircraft, few sensors)."""
+    if values.size == 0:
         return np.empty(0, object)
-    text = np.char.zfill(np.char.lower(np.char.mod("%x", addresses)), 6)
-    return np.where(present, text.astype(object), None)
+    distinct, index = np.unique(values, return_inverse=True)
+    table = np.array([text(int(v)) for v in distinct], dtype=object)
+    return np.where(present, table[index], None)
 
 
 def unwrap_time_of_day(time_of_day_s: np.ndarray, sensor_key: np.ndarray) -> np.ndarray:
@@ -146,15 +148,16 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
     time = np.full(cat.size, np.nan)
     time[usable] = unwrap_time_of_day(time_of_day[usable], sac_sic[usable])
     sac, sic = sac_sic >> 8, sac_sic & 0xFF
-    if sensor_names is None:
-        names = np.char.add(np.char.add(sac.astype(str), "/"), sic.astype(str)).astype(object)
-    else:
-        names = np.array([sensor_names.get((int(a), int(b)), f"{a}/{b}") for a, b in zip(sac, sic)], dtype=object)
+    names_given = sensor_names or {}
+    names = _text_by_value(sac_sic, np.ones(sac_sic.size, bool),
+                           lambda v: names_given.get((v >> 8, v & 0xFF), f"{v >> 8}/{v & 0xFF}"))
 
     p = items[is_plot]
     position = _unsigned(buf, p[:, ITEMS_READ[48].index("040")], 4)
     mode3a_at, level_at = p[:, ITEMS_READ[48].index("070")], p[:, ITEMS_READ[48].index("090")]
     address_at, typ_at = p[:, ITEMS_READ[48].index("220")], p[:, ITEMS_READ[48].index("020")]
+    mode3a_code = _unsigned(buf, mode3a_at, 2) & 0x0FFF
+    address = _unsigned(buf, address_at, 3)
     level = _unsigned(buf, level_at, 2) & 0x3FFF
     level = np.where(level >= 1 << 13, level - (1 << 14), level)
     plots = {
@@ -162,13 +165,15 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
         "sensor": names[is_plot],
         "range_m": (position >> 16) * u.RHO_LSB_M,
         "azimuth_deg": (position & 0xFFFF) * u.THETA_LSB_DEG,
-        "mode3a": _octal_text(_unsigned(buf, mode3a_at, 2) & 0x0FFF, mode3a_at >= 0),
+        "mode3a": _octal_text(mode3a_code, mode3a_at >= 0),
         "mode_c_ft": np.where(level_at >= 0, level * u.FLIGHT_LEVEL_LSB_FT, np.nan),
-        "mode_s": _hex_text(_unsigned(buf, address_at, 3), address_at >= 0),
+        "mode_s": _text_by_value(address, address_at >= 0, lambda v: f"{v:06x}"),
         "sac": sac[is_plot],
         "sic": sic[is_plot],
         "time_of_day_s": time_of_day[is_plot],
         "detection_type": np.where(typ_at >= 0, _unsigned(buf, typ_at, 1) >> 5, -1),
+        "mode3a_code": np.where(mode3a_at >= 0, mode3a_code, -1),
+        "mode_s_address": np.where(address_at >= 0, address, -1),
     }
     s = items[is_service]
     azimuth_at = s[:, ITEMS_READ[34].index("020")]
