@@ -190,5 +190,19 @@ def test_encoder_names_the_row_of_a_value_the_items_cannot_hold():
     plots.loc[2, "range_m"] = 257 * u.NAUTICAL_MILE_M
     with pytest.raises(ValueError, match="row 2, column range_m"):
         encode_asterix(plots, SAC_SIC)
+    plots = random_plots(4, seed=1)
+    plots.loc[3, "time"] = np.nan
+    with pytest.raises(ValueError, match="row 3, column time: a finite number"):
+        encode_asterix(plots, SAC_SIC)
     with pytest.raises(ValueError, match="no SAC/SIC for sensor"):
         encode_asterix(random_plots(4, seed=1), {"north": (1, 1)})
+
+
+def test_empty_input_and_array_input():
+    empty = decode_asterix(b"", strict=True)
+    assert empty.plots["range_m"].size == 0 and empty.service["time"].size == 0
+    assert (empty.problems.blocks, empty.problems.records, empty.problems.count) == (0, 0, 0)
+    data = encode_asterix(random_plots(8, seed=4), SAC_SIC)
+    from_array = decode_asterix(np.frombuffer(data, np.uint8))
+    assert list(from_array.plots["range_m"]) == list(decode_asterix(data).plots["range_m"])
+    assert from_array.plots["range_m"].size == 8

@@ -69,6 +69,10 @@ def plot_records(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]], *,
     """One libasterix CAT048 record per plot row (columns as in docs/formats.md, plots)."""
     cat048, _ = _specs()
     n = len(plots)
+    for name in ("time", "range_m", "azimuth_deg"):
+        finite = np.isfinite(plots[name].to_numpy(float))
+        if not finite.all():
+            raise ValueError(f"plots: row {int(np.flatnonzero(~finite)[0])}, column {name}: a finite number is required")
     ids = _sac_sic(plots["sensor"].to_numpy(), sac_sic, "plots")
     tod = _time_of_day_raw(plots["time"].to_numpy(float), time_of_day_at_epoch_s)
     rho = np.rint(plots["range_m"].to_numpy(float) / u.RHO_LSB_M).astype(np.int64)
@@ -113,6 +117,9 @@ def service_records(service: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]
     """One libasterix CAT034 record per row of ``service``: columns ``time``, ``sensor``,
     ``message`` (``north_marker`` or ``sector_crossing``) and ``azimuth_deg`` (sector crossings)."""
     _, cat034 = _specs()
+    finite = np.isfinite(service["time"].to_numpy(float))
+    if not finite.all():
+        raise ValueError(f"service messages: row {int(np.flatnonzero(~finite)[0])}, column time: a finite number is required")
     ids = _sac_sic(service["sensor"].to_numpy(), sac_sic, "service messages")
     tod = _time_of_day_raw(service["time"].to_numpy(float), time_of_day_at_epoch_s)
     kinds = service["message"].astype(str).to_numpy()
