@@ -177,7 +177,7 @@ def test_deterministic_commands_pass_their_checks(tmp_path, command, name, count
     assert result.exit_code == 0, result.output
     assert result.output.count("PASS") >= count and "FAIL" not in result.output
     summary = json.loads((tmp_path / f"{name}.json").read_text())
-    assert summary["all_passed"] and len(summary["checks"]) == count
+    assert summary["passed"] and len(summary["checks"]) == count
     assert all(ax["xlabel"] and ax["ylabel"] and ax["title"] for ax in summary["figure"])
     assert len(pd.read_csv(tmp_path / f"{name}.csv")) in (4, 8)
     assert (tmp_path / f"{name}.png").stat().st_size > 10_000

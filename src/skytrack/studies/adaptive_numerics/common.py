@@ -49,7 +49,7 @@ def write_outputs(out_dir: Path, name: str, table: pd.DataFrame, fig, checks: li
         paths.append(path)
     summary = {"study": name, "options": options, "results": results or {},
                "checks": checks_frame(checks).to_dict(orient="records"),
-               "all_passed": all(c.passed for c in checks), "figure": describe_figure(fig)}
+               "passed": all(c.passed for c in checks), "figure": describe_figure(fig)}
     png = save_figure(fig, out_dir / f"{name}.png")
     json_path = out_dir / f"{name}.json"
     json_path.write_text(json.dumps(jsonable(summary), indent=2, ensure_ascii=False))

@@ -105,5 +105,5 @@ def summary_json(summaries: list[Summary], checks: list[Check], runs: int, seed:
                      if s.key != "imm" else None} for s in summaries],
         "checks": [{"name": c.name, "measured": c.measured, "expected": c.expected, "passed": c.passed}
                    for c in checks],
-        "all_passed": all(c.passed for c in checks),
+        "passed": all(c.passed for c in checks),
     }
