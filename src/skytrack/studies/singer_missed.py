@@ -184,27 +184,63 @@ def steady_state_accuracy(model: SingerAxisModel, variant: str, sigma: float, si
     return math.sqrt(P_filt[0, 0]) / sigma, math.sqrt(P_pred[0, 0]) / sigma
 
 
-def run_study(config: StudyConfig) -> pd.DataFrame:
-    """E1/E2/E4 table with the CSV columns of §6, one row per (variant, sigma, P_D), sorted."""
-    model = config.model
+@dataclass(frozen=True)
+class AccuracyTask:
+    """One task of :func:`run_study`: one variant over every (sigma, P_D) cell for a batch of runs.
+
+    ``run_seeds`` are the batch's children of ``SeedSequence(seed).spawn(runs)`` (issue 11 item 6)."""
+
+    config: StudyConfig
+    variant: str
+    run_seeds: tuple
+
+
+def accuracy_task(task: AccuracyTask) -> tuple[np.ndarray, np.ndarray]:
+    """FS11 and FES11 ``[sigma, P_D, run]`` of the task's runs (pure: the task's seeds in, numbers out)."""
+    config = task.config
     sigmas = np.array(config.grid_sigmas)
     pds = np.array(config.grid_pds)
-    u = detection_uniforms(config.seed, config.runs, config.scans)
-    n_s, n_p, n_r = len(sigmas), len(pds), config.runs
-    row_sigma = np.repeat(sigmas, n_p * n_r)
+    u = np.stack([np.random.default_rng(s).random(int(config.scans)) for s in task.run_seeds])
+    n_s, n_p, n_r = len(sigmas), len(pds), len(task.run_seeds)
 
     def detected_at(n: int) -> np.ndarray:
         by_pd = u[:, n - 1][None, :] < pds[:, None]  # [P_D, run]
         return np.broadcast_to(by_pd, (n_s, n_p, n_r)).reshape(-1)
 
+    fs11, fes11 = relative_accuracy(
+        config.model, task.variant, sigma=np.repeat(sigmas, n_p * n_r), sigma_v=config.sigma_v, dt=config.dt,
+        detection=detected_at, n_scans=config.scans, start=config.start, update_form=config.update_form,
+    )
+    return fs11.reshape(n_s, n_p, n_r), fes11.reshape(n_s, n_p, n_r)
+
+
+def accuracy_tasks(config: StudyConfig) -> list[AccuracyTask]:
+    """The tasks of :func:`run_study`: per variant, the runs cut into fixed batches of ``RUNS_PER_TASK``."""
+    from skytrack.studies.parallel import batches
+
+    seeds = run_seeds(config.seed, config.runs)
+    return [AccuracyTask(config, variant, tuple(seeds[r] for r in batch))
+            for variant in config.variants for batch in batches(config.runs)]
+
+
+def run_study(config: StudyConfig, executor=None, progress: Callable[[int, int], None] | None = None) -> pd.DataFrame:
+    """E1/E2/E4 table with the CSV columns of §6, one row per (variant, sigma, P_D), sorted.
+
+    The runs are batched in :func:`accuracy_tasks` and mapped over ``executor`` (any
+    ``concurrent.futures`` executor, ``None``: in this process); the numbers do not depend on it."""
+    from skytrack.studies.parallel import map_tasks
+
+    model = config.model
+    sigmas = np.array(config.grid_sigmas)
+    pds = np.array(config.grid_pds)
+    n_s, n_p, n_r = len(sigmas), len(pds), config.runs
+    tasks = accuracy_tasks(config)
+    results = map_tasks(accuracy_task, tasks, executor, progress)
     frames = []
     for variant in config.variants:
-        fs11, fes11 = relative_accuracy(
-            model, variant, sigma=row_sigma, sigma_v=config.sigma_v, dt=config.dt, detection=detected_at,
-            n_scans=config.scans, start=config.start, update_form=config.update_form,
-        )
-        fs11 = fs11.reshape(n_s, n_p, n_r)
-        fes11 = fes11.reshape(n_s, n_p, n_r)
+        mine = [result for task, result in zip(tasks, results) if task.variant == variant]
+        fs11 = np.concatenate([r[0] for r in mine], axis=-1)
+        fes11 = np.concatenate([r[1] for r in mine], axis=-1)
         ddof_sd = (lambda a: a.std(axis=-1, ddof=1)) if n_r > 1 else (lambda a: np.full(a.shape[:-1], np.nan))
         ss = np.array([steady_state_accuracy(model, variant, s, config.sigma_v, config.dt) for s in sigmas])
         frames.append(pd.DataFrame({
@@ -423,11 +459,51 @@ def filter_consistency(
                             {k: float(var[i] / samples) for i, k in enumerate(keys)}, samples)
 
 
+@dataclass(frozen=True)
+class ConsistencyTask:
+    """One E5 cell: a (variant, sigma, P_D) with its runs' seeds and the truth simulator (a module-level function)."""
+
+    config: StudyConfig
+    simulate: Callable[..., object]
+    variant: str
+    sigma: float
+    p_d: float
+    run_seeds: tuple
+
+
+def consistency_task(task: ConsistencyTask) -> dict:
+    """The E5 row of one cell (pure: the cell and its seeds in, a dict of numbers out)."""
+    config, variant, sigma, p_d = task.config, task.variant, task.sigma, task.p_d
+    model = config.model
+    mc_runs = len(task.run_seeds)
+    P0 = initial_covariance(model, variant, sigma, config.sigma_v, config.dt, config.start)
+    rng = [np.random.default_rng(s) for s in task.run_seeds]
+    scenario = task.simulate(
+        model, dt=config.dt, n_scans=config.scans, runs=mc_runs, sigma=sigma, p_detection=p_d,
+        rng=rng, measurement=variant, sigma_v=config.sigma_v, m0=np.zeros(3), P0=P0,
+    )
+    stats = filter_consistency(
+        model, variant, sigma=sigma, sigma_v=config.sigma_v, dt=config.dt, truth=scenario.truth,
+        measurements=scenario.measurements, detected=scenario.detected, m0=np.zeros(3), P0=P0,
+        update_form=config.update_form,
+    )
+    rms_f, rms_p = math.sqrt(stats.mse["x"]), math.sqrt(stats.mse["x_pred"])
+    sd_f, sd_p = math.sqrt(stats.variance["x"]), math.sqrt(stats.variance["x_pred"])
+    return {
+        "discretization": config.discretization, "variant": variant, "sigma_m": sigma, "pd": p_d,
+        "mc_runs": mc_runs, "rms_filtered_m": rms_f, "sqrt_mean_gamma11_m": sd_f,
+        "ratio_filtered": rms_f / sd_f, "rms_extrapolated_m": rms_p, "sqrt_mean_egamma11_m": sd_p,
+        "ratio_extrapolated": rms_p / sd_p,
+    }
+
+
 def monte_carlo_consistency(
     config: StudyConfig,
     simulate: Callable[..., object],
     mc_runs: int,
     on_cell_done: Callable[[], None] | None = None,
+    executor=None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """E5: simulate truth and reports (R14) for every (variant, sigma, P_D) cell and compare
     the empirical RMS filtered / extrapolated position errors with sqrt(mean gamma_11) and
@@ -438,39 +514,26 @@ def monte_carlo_consistency(
     generator per run (``rng=[...]``), run r's seeded with ``SeedSequence(seed).spawn(mc_runs)[r]``
     afresh in every cell, so results depend neither on the rest of the grid nor on how the
     runs are batched.  Runs start from (0, gamma(0)) with the truth drawn from the same law.
+    Every cell is one task (:class:`ConsistencyTask`) mapped over ``executor`` (``None``: in this
+    process; a process pool or Dask needs a module-level ``simulate``); ``on_cell_done()`` and
+    ``progress(done, total)`` follow the cells as they complete.
     """
+    from skytrack.studies.parallel import map_tasks
+
     if int(mc_runs) != mc_runs or mc_runs < 2:
         raise ValueError(f"--mc-runs must be an integer >= 2, got {mc_runs}")
-    model = config.model
-    seeds = run_seeds(config.seed, int(mc_runs))
-    rows = []
-    for variant in VARIANTS:
-        if variant not in config.variants:
-            continue
-        for sigma in config.grid_sigmas:
-            P0 = initial_covariance(model, variant, sigma, config.sigma_v, config.dt, config.start)
-            for p_d in config.grid_pds:
-                rng = [np.random.default_rng(s) for s in seeds]
-                scenario = simulate(
-                    model, dt=config.dt, n_scans=config.scans, runs=int(mc_runs), sigma=sigma, p_detection=p_d,
-                    rng=rng, measurement=variant, sigma_v=config.sigma_v, m0=np.zeros(3), P0=P0,
-                )
-                stats = filter_consistency(
-                    model, variant, sigma=sigma, sigma_v=config.sigma_v, dt=config.dt, truth=scenario.truth,
-                    measurements=scenario.measurements, detected=scenario.detected, m0=np.zeros(3), P0=P0,
-                    update_form=config.update_form,
-                )
-                rms_f, rms_p = math.sqrt(stats.mse["x"]), math.sqrt(stats.mse["x_pred"])
-                sd_f, sd_p = math.sqrt(stats.variance["x"]), math.sqrt(stats.variance["x_pred"])
-                rows.append({
-                    "discretization": config.discretization, "variant": variant, "sigma_m": sigma, "pd": p_d,
-                    "mc_runs": int(mc_runs), "rms_filtered_m": rms_f, "sqrt_mean_gamma11_m": sd_f,
-                    "ratio_filtered": rms_f / sd_f, "rms_extrapolated_m": rms_p, "sqrt_mean_egamma11_m": sd_p,
-                    "ratio_extrapolated": rms_p / sd_p,
-                })
-                if on_cell_done is not None:
-                    on_cell_done()
-    return pd.DataFrame(rows)
+    seeds = tuple(run_seeds(config.seed, int(mc_runs)))
+    tasks = [ConsistencyTask(config, simulate, variant, sigma, p_d, seeds)
+             for variant in VARIANTS if variant in config.variants
+             for sigma in config.grid_sigmas for p_d in config.grid_pds]
+
+    def report(done: int, total: int) -> None:
+        if on_cell_done is not None and done > 0:
+            on_cell_done()
+        if progress is not None:
+            progress(done, total)
+
+    return pd.DataFrame(map_tasks(consistency_task, tasks, executor, report))
 
 
 def monte_carlo_cells(config: StudyConfig) -> int:
