@@ -25,6 +25,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from skytrack.cli.study_output import SchedulerOption, WorkersOption, study_executor
+
 console = Console()
 error_console = Console(stderr=True)
 
@@ -174,6 +176,8 @@ def fuzzy_crossing(
     diagnostic_runs: Annotated[int, typer.Option("--diagnostic-runs", help="Write spec 003 R13's per-(plot, "
                                                  "hypothesis) scores of the first N runs of every configuration "
                                                  "and method to fuzzy_crossing_pairs.parquet.")] = 0,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """E4: crossing targets of different nationality, IFF errors and interrogation policies (spec 003 §6)."""
     import itertools
@@ -216,23 +220,26 @@ def fuzzy_crossing(
     if diagnostic_runs < 0:
         _fail(f"--diagnostic-runs must be >= 0, got {diagnostic_runs}")
     out.mkdir(parents=True, exist_ok=True)
-    kept: list = []
-    pairs: list = []
-    tables = []
+    diagnostic_runs = min(diagnostic_runs, runs)
+    tasks = [crossing.CrossingTask(case, method, runs, seed, check, diagnostic_runs)
+             for case in cases for method in method_list]
+    if check:  # TV13 (c) also across p_reply: the coordinate rules on a run set with p_reply = 0.5
+        extra = replace(crossing.CrossingCase(sweep="check"), policy="always", p_reply=0.5)
+        tasks += [crossing.CrossingTask(extra, method, runs, seed, True) for method in ("nn", "ml")]
     columns = (TextColumn("[bold]fuzzy-crossing"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=error_console, transient=False) as display:
-        task = display.add_task("runs", total=len(cases) * len(method_list))
-        for case in cases:
-            decisions: dict = {}
-            tables.append(crossing.run_case(case, method_list, runs, seed, lambda n: display.advance(task, n),
-                                            keep=decisions if check else None,
-                                            diagnostic_runs=min(diagnostic_runs, runs), diagnostics=pairs))
-            kept.append((case, decisions))
-        if check:  # TV13 (c) also across p_reply: the coordinate rules on a run set with p_reply = 0.5
-            decisions = {}
-            crossing.run_case(replace(crossing.CrossingCase(sweep="check"), policy="always", p_reply=0.5),
-                              ("nn", "ml"), runs, seed, keep=decisions)
-            kept.append((crossing.CrossingCase(), decisions))
+    with study_executor(error_console, workers, scheduler) as executor, \
+            Progress(*columns, console=error_console, transient=False) as display:
+        task = display.add_task("runs", total=len(tasks))
+        results = crossing.run_tasks(tasks, executor, lambda done, total: display.update(task, completed=done))
+    n_main = len(cases) * len(method_list)
+    tables = [pd.DataFrame([r.row for r in results[:n_main]])]
+    pairs = [r.diagnostics for r in results[:n_main] if r.diagnostics is not None]
+    kept: list = []
+    for k, case in enumerate(cases):
+        part = zip(method_list, results[k * len(method_list):(k + 1) * len(method_list)])
+        kept.append((case, {method: r.decisions for method, r in part} if check else {}))
+    if check:
+        kept.append((crossing.CrossingCase(), {t.method: r.decisions for t, r in zip(tasks[n_main:], results[n_main:])}))
     table = pd.concat(tables, ignore_index=True)
     csv_path, png_path = out / "fuzzy_crossing.csv", out / "fuzzy_crossing.png"
     table.to_csv(csv_path, index=False)

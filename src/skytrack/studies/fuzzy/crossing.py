@@ -21,6 +21,7 @@ spec's CI-sized assertions (i)-(iv) and :func:`qualitative_checks` the expected 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from functools import lru_cache
 from typing import Callable, Iterable
 
 import numpy as np
@@ -98,38 +99,90 @@ def decisions_metrics(decisions: RunDecisions, runs: SimulatedRuns):
     return association_metrics(run, scan, runs.truth[valid], decisions.track_id[valid], runs.crossing_scan)
 
 
+@dataclass(frozen=True)
+class CrossingTask:
+    """One task of E4 (issue 11 item 6): a method on a configuration's ``runs`` runs drawn from ``seed``.
+
+    ``keep_decisions`` returns the method's :class:`RunDecisions` (the TV13 (c) check);
+    ``diagnostic_runs`` > 0 returns R13's per-(plot, hypothesis) rows of the first runs."""
+
+    case: CrossingCase
+    method: str
+    runs: int
+    seed: int
+    keep_decisions: bool = False
+    diagnostic_runs: int = 0
+
+
+@dataclass
+class CrossingResult:
+    """What a :class:`CrossingTask` returns: its table row and, when asked, decisions and R13 rows."""
+
+    row: dict
+    decisions: RunDecisions | None = None
+    diagnostics: pd.DataFrame | None = None
+
+
+@lru_cache(maxsize=2)
+def _simulated(case: CrossingCase, runs: int, seed: int) -> SimulatedRuns:
+    # the methods of a case run on the same draws: a worker that gets several of them simulates once
+    return case.simulate(runs, seed)
+
+
+def crossing_task(task: CrossingTask) -> CrossingResult:
+    """Track the task's runs with its method and measure R19 (pure: the task in, a result out)."""
+    case, method, runs = task.case, task.method, task.runs
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; methods are {', '.join(METHODS)}")
+    simulated = _simulated(case, runs, task.seed)
+    decisions = case.tracker(method).run(simulated.plots)
+    diagnostics = None
+    if task.diagnostic_runs > 0:
+        tracker = case.tracker(method)
+        tracker.diagnostics = True
+        table = tracker.run(first_runs(simulated.plots, min(task.diagnostic_runs, runs))).diagnostics
+        if table is not None:
+            diagnostics = table.assign(method=method, **asdict(case))
+    s = decisions_metrics(decisions, simulated).summary
+    row = {**asdict(case), "method": method, "runs": runs, "car": s["car"], "car_se": s["car_se"],
+           "car_se_runs": s["car_se_runs"],
+           "swap": s["swapped"], "swap_se": s["swapped_se"], "broken": s["broken"],
+           "broken_se": s["broken_se"], "interrogated": int(decisions.requested.sum()),
+           "degenerate_pairs": decisions.degenerate_pairs}
+    return CrossingResult(row, decisions if task.keep_decisions else None, diagnostics)
+
+
+def run_tasks(tasks: list[CrossingTask], executor=None,
+              progress: Callable[[int, int], None] | None = None) -> list[CrossingResult]:
+    """Map :func:`crossing_task` over ``executor`` (``None``: in this process); results in task order."""
+    from skytrack.studies.parallel import map_tasks
+
+    for task in tasks:
+        if task.method not in METHODS:
+            raise ValueError(f"unknown method {task.method!r}; methods are {', '.join(METHODS)}")
+    return map_tasks(crossing_task, tasks, executor, progress)
+
+
 def run_case(case: CrossingCase, methods: Iterable[str], runs: int, seed: int,
              progress: Callable[[int], None] | None = None, keep: dict | None = None,
-             diagnostic_runs: int = 0, diagnostics: list | None = None) -> pd.DataFrame:
+             diagnostic_runs: int = 0, diagnostics: list | None = None, executor=None) -> pd.DataFrame:
     """One row per method: the case's settings, ``runs`` and the R19 rates with their SEs.
 
     ``keep`` (a dict) receives each method's :class:`RunDecisions` (the TV13 (c) check);
     with ``diagnostic_runs`` > 0 the first that many runs are tracked again with R13's
-    per-(plot, hypothesis) rows, appended to ``diagnostics`` with the case and the method."""
-    simulated = case.simulate(runs, seed)
-    first = first_runs(simulated.plots, diagnostic_runs) if diagnostic_runs > 0 else None
-    rows = []
-    for method in methods:
-        if method not in METHODS:
-            raise ValueError(f"unknown method {method!r}; methods are {', '.join(METHODS)}")
-        decisions = case.tracker(method).run(simulated.plots)
+    per-(plot, hypothesis) rows, appended to ``diagnostics`` with the case and the method.
+    The methods are :class:`CrossingTask` s mapped over ``executor``; ``progress(1)`` per method."""
+    methods = list(methods)
+    tasks = [CrossingTask(case, method, runs, seed, keep is not None,
+                          diagnostic_runs if diagnostics is not None else 0) for method in methods]
+    step = None if progress is None else (lambda done, total: progress(1) if done else None)
+    results = run_tasks(tasks, executor, step)
+    for method, result in zip(methods, results):
         if keep is not None:
-            keep[method] = decisions
-        if first is not None and diagnostics is not None:
-            tracker = case.tracker(method)
-            tracker.diagnostics = True
-            table = tracker.run(first).diagnostics
-            if table is not None:
-                diagnostics.append(table.assign(method=method, **asdict(case)))
-        s = decisions_metrics(decisions, simulated).summary
-        rows.append({**asdict(case), "method": method, "runs": runs, "car": s["car"], "car_se": s["car_se"],
-                     "car_se_runs": s["car_se_runs"],
-                     "swap": s["swapped"], "swap_se": s["swapped_se"], "broken": s["broken"],
-                     "broken_se": s["broken_se"], "interrogated": int(decisions.requested.sum()),
-                     "degenerate_pairs": decisions.degenerate_pairs})
-        if progress is not None:
-            progress(1)
-    return pd.DataFrame(rows)
+            keep[method] = result.decisions
+        if diagnostics is not None and result.diagnostics is not None:
+            diagnostics.append(result.diagnostics)
+    return pd.DataFrame([result.row for result in results])
 
 
 def first_runs(plots: RunPlots, count: int) -> RunPlots:
@@ -139,10 +192,12 @@ def first_runs(plots: RunPlots, count: int) -> RunPlots:
 
 
 def run_study(cases: list[CrossingCase], methods: Iterable[str], runs: int, seed: int,
-              progress: Callable[[int], None] | None = None) -> pd.DataFrame:
-    """All cases x methods (every case simulated with the same seed: paired comparisons)."""
+              progress: Callable[[int, int], None] | None = None, executor=None) -> pd.DataFrame:
+    """All cases x methods (every case simulated with the same seed: paired comparisons), one task per
+    (case, method) mapped over ``executor``; ``progress(done, total)`` as tasks complete."""
     methods = list(methods)
-    return pd.concat([run_case(c, methods, runs, seed, progress) for c in cases], ignore_index=True)
+    tasks = [CrossingTask(case, method, runs, seed) for case in cases for method in methods]
+    return pd.DataFrame([result.row for result in run_tasks(tasks, executor, progress)])
 
 
 def cell(table: pd.DataFrame, method: str, **settings) -> pd.Series:
