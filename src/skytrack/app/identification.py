@@ -346,6 +346,26 @@ class TrackLabeler:
             self.stats.label_changes += 1
         return [(t, track, field, before, after, self.other.source, probability) for field, before, after in changed]
 
+    # ------------------------------------------------------------------ checkpoints
+    def state(self) -> dict[str, np.ndarray]:
+        """The whole labelling state (the other system's reports and how far they were taken, the
+        identifier's tracks, pairs and their sequential test sums, labels held, statistics) for a
+        checkpoint (issue 11 item 3): one byte array, the pickled attributes.  The identifier's
+        state is a graph of Python objects and arrays; a pickle keeps it exactly, so a checkpoint
+        must only be loaded from a directory no one else writes to."""
+        import pickle
+
+        return {"pickle": np.frombuffer(pickle.dumps(self.__dict__, protocol=pickle.HIGHEST_PROTOCOL), np.uint8)}
+
+    @classmethod
+    def restore(cls, state: dict[str, np.ndarray]) -> "TrackLabeler":
+        """The labeller :meth:`state` saved: labelling the same track rows afterwards gives the same labels."""
+        import pickle
+
+        labeler = cls.__new__(cls)
+        labeler.__dict__.update(pickle.loads(np.asarray(state["pickle"], np.uint8).tobytes()))
+        return labeler
+
     def pairs_table(self) -> pd.DataFrame:
         """Every (time, track, other track, P(same), pair) the labelling decided, for ``identify tracks``."""
         return pd.DataFrame(self.pairs_log, columns=["time", "track_id", "other_track", "identity_p", "pair"])

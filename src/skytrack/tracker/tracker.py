@@ -7,6 +7,7 @@ and the output clock — and offers ``feed`` / ``finish`` / ``drain`` for stream
 ``run`` for a whole table, and ``snapshot(t)`` for a live display.  Once a plot has carried
 an identity (Mode 3/A, Mode S, IFF), every change of a confirmed track's identity is an
 identity event (:mod:`skytrack.tracker.identity`; ``drain_identity_events``).
+``checkpoint`` / ``restore`` save and rebuild the whole state (issue 11 item 3, for the live service).
 """
 
 from __future__ import annotations
@@ -192,6 +193,27 @@ class Tracker:
         if len(rows) == 0:
             return empty_tracks(self.config.output.full_covariance, self.model.dim)
         return tracks_frame(self._table([self._rows_at(t, rows)]))
+
+    # ------------------------------------------------------------------ checkpoints
+    def checkpoint(self) -> tuple[dict[str, np.ndarray], dict]:
+        """The whole state (track bank with every filter state, clutter maps, learned codes,
+        identities, open windows' plots, output clock, undrained rows, counters) as ``(arrays,
+        meta)``: a flat dict of numpy arrays and a JSON-able dict (:mod:`skytrack.tracker.state`;
+        :mod:`skytrack.app.checkpoint` writes them to a file)."""
+        from skytrack.tracker.state import tracker_state
+
+        return tracker_state(self)
+
+    @classmethod
+    def restore(cls, sensors: SensorSet, config: TrackerConfig | None, arrays: dict[str, np.ndarray],
+                meta: dict) -> "Tracker":
+        """A tracker of ``sensors`` and ``config`` in the state :meth:`checkpoint` returned: fed the
+        same plots afterwards, it produces the same tracks as the tracker that was saved."""
+        from skytrack.tracker.state import restore_tracker_state
+
+        tracker = cls(sensors, config)
+        restore_tracker_state(tracker, arrays, meta)
+        return tracker
 
     # ------------------------------------------------------------------ windows
     def _process_pending(self, final: bool) -> None:
