@@ -5,7 +5,8 @@ the FS11/FES11 table (E1/E2/E4), the E3 Kalman check at P_D = 1 (a failure exits
 code 1), the E6 minimal-P_D read-off for ``--require-fs11``, and with ``--monte-carlo``
 the E5 consistency table (simulated with :mod:`skytrack.sim.singer_truth`, rich progress bar).
 Outputs: ``singer_missed.csv``, ``singer_missed_vs_pd.png``, ``singer_missed_vs_sigma.png``
-(and ``singer_missed_mc.csv`` with ``--monte-carlo``) in ``--out``.
+(and ``singer_missed_mc.csv`` with ``--monte-carlo``) in ``--out``.  ``--workers``/``--scheduler`` choose
+where the batches of runs and the E5 cells run (issue 11 item 6); the numbers do not depend on it.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from skytrack.cli.study_output import SchedulerOption, WorkersOption, study_executor
 from skytrack.cli.study_fuzzy import register_fuzzy_studies
 from skytrack.cli.study_ident_mc import register_mc_studies
 from skytrack.cli.study_ident_potential import register_potential_studies
@@ -91,6 +93,8 @@ def singer_missed(
     mc_runs: int = typer.Option(2000, "--mc-runs", help="Monte Carlo runs per cell"),
     require_fs11: float | None = typer.Option(None, "--require-fs11", help="E6: print the minimal P_D with FS11 ≤ this, per σ"),
     require_fes11: float | None = typer.Option(None, "--require-fes11", help="E6: the same for FES11"),
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Singer filtering / one-scan extrapolation accuracy with missed detections (spec 000 §6)."""
     from skytrack.studies import singer_missed as study  # the library is imported here: --help stays light
@@ -107,7 +111,10 @@ def singer_missed(
         raise typer.BadParameter(str(exc)) from None
 
     started = time.perf_counter()
-    table = study.run_study(config)
+    with study_executor(console, workers, scheduler) as executor:  # issue 11 item 6: runs in batches of tasks
+        table = study.run_study(config, executor)
+        if monte_carlo:
+            mc = _monte_carlo_table(console, config, mc_runs, executor)
     paths = study.write_outputs(table, config, out)
     elapsed = time.perf_counter() - started
     console.print(_results_table(table, f"singer-missed: {config.discretization}, {config.runs} run(s) × {config.scans} scans, seed {config.seed}"))
@@ -145,14 +152,14 @@ def singer_missed(
         console.print(rt)
 
     if monte_carlo:
-        failed |= _run_monte_carlo(console, config, mc_runs, Path(out))
+        failed |= _print_monte_carlo(console, mc, mc_runs, Path(out))
     if failed:
         console.print("[red]a consistency check failed[/red]")
         raise typer.Exit(code=1)
 
 
-def _run_monte_carlo(console: Console, config, mc_runs: int, out: Path) -> bool:
-    """E5 with a progress bar; returns True if a checked ratio is outside 1 ± MC_BAND."""
+def _monte_carlo_table(console: Console, config, mc_runs: int, executor):
+    """E5 with a progress bar, one task per cell on ``executor``."""
     from skytrack.studies import singer_missed as study
     from skytrack.sim.singer_truth import simulate_singer_1d
 
@@ -160,11 +167,14 @@ def _run_monte_carlo(console: Console, config, mc_runs: int, out: Path) -> bool:
     try:
         with Progress(*columns, console=console, transient=False) as progress:
             task = progress.add_task("mc", total=study.monte_carlo_cells(config))
-            mc = study.monte_carlo_consistency(
-                config, simulate_singer_1d, mc_runs, on_cell_done=lambda: progress.advance(task)
-            )
+            return study.monte_carlo_consistency(config, simulate_singer_1d, mc_runs, executor=executor,
+                                                 progress=lambda done, total: progress.update(task, completed=done))
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from None
+
+
+def _print_monte_carlo(console: Console, mc, mc_runs: int, out: Path) -> bool:
+    """Write and print the E5 table; returns True if a checked ratio is outside 1 ± MC_BAND."""
     mc.to_csv(out / MC_CSV_NAME, index=False, float_format="%.10g")
     checked = mc["pd"] >= MC_PD_CHECKED
     bad = checked & (((mc["ratio_filtered"] - 1).abs() > MC_BAND) | ((mc["ratio_extrapolated"] - 1).abs() > MC_BAND))
