@@ -22,14 +22,17 @@ sensor's first message.  Validity bits (I048/070 V/G/L, I048/090 V/G) are not re
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
+from skytrack.geo.sensors import Origin
 from skytrack.io.asterix import units as u
+from skytrack.io.asterix.cat021_items import decode_cat021_records, missing_required
 from skytrack.io.asterix.framing import ITEMS_READ, scan_records
 from skytrack.io.asterix.problems import (
+    MISSING_CAT021,
     MISSING_ITEM,
     PROBLEM_KINDS,
     REQUIRED_ITEMS,
@@ -83,11 +86,13 @@ def unwrap_time_of_day(time_of_day_s: np.ndarray, sensor_key: np.ndarray) -> np.
 
 @dataclass
 class DecodedAsterix:
-    """Plots (CAT048) and service messages (CAT034) as column arrays, and the problems met."""
+    """Plots (CAT048), service messages (CAT034) and ADS-B reports (CAT021, :mod:`.cat021`) as
+    column arrays, and the problems met."""
 
     plots: dict[str, np.ndarray]
     service: dict[str, np.ndarray]
     problems: DecodeProblems
+    adsb: dict[str, np.ndarray] = field(default_factory=dict)
 
     def plots_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.plots)
@@ -105,13 +110,16 @@ def _column(items: np.ndarray, cat: int, item: str) -> np.ndarray:
 
 
 def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict: bool = False,
-                   sensor_names: Mapping[tuple[int, int], str] | None = None) -> DecodedAsterix:
+                   sensor_names: Mapping[tuple[int, int], str] | None = None,
+                   origin: Origin | None = None) -> DecodedAsterix:
     """Decode CAT048 plots and CAT034 service messages from ASTERIX bytes.
 
     Lenient (default): problems are counted in ``problems`` with their byte offsets and
     decoding resumes at the next block; a record without a required item (plots: I048/010,
     140, 040; service messages: I034/010, 000, 030) is skipped and counted.  ``strict=True`` raises :class:`AsterixDecodeError` at the first problem.
     ``sensor_names`` maps (SAC, SIC) to the ``sensor`` column; otherwise it is ``"SAC/SIC"``.
+    CAT021 ADS-B reports go to ``adsb`` (their velocities ``vx, vy, vz`` in the ENU frame of
+    ``origin`` when it is given); a report without a required item is skipped and counted.
     """
     buf = np.frombuffer(bytes(data), np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8, copy=False)
     records, raw_problems, n_blocks = scan_records(buf)
@@ -135,6 +143,15 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
                 same_block_next = i + 1 < start.size and records["block"][i + 1] == records["block"][i]
                 problems.append(AsterixProblem(MISSING_ITEM[category, item], int(start[i]), int(records["block"][i]),
                                                0, int(start[i + 1] - start[i]) if same_block_next else 0))
+    is_adsb = cat == 21
+    adsb_rows = np.flatnonzero(is_adsb)
+    lacking = missing_required(items[adsb_rows])
+    for i, group in zip(adsb_rows[lacking > 0], lacking[lacking > 0]):
+        same_block_next = i + 1 < start.size and records["block"][i + 1] == records["block"][i]
+        problems.append(AsterixProblem(MISSING_CAT021[group - 1], int(start[i]), int(records["block"][i]), 0,
+                                       int(start[i + 1] - start[i]) if same_block_next else 0))
+    is_adsb[adsb_rows[lacking > 0]] = False
+    usable |= is_adsb
     problems.sort(key=lambda p: p.offset)
     if strict and problems:
         raise AsterixDecodeError(problems[0])
@@ -144,9 +161,14 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
     # the columns of I048/010 and I034/010 (and 140 / 030) are the same: column 0 and 1 / 2
     sac_sic = _unsigned(buf, np.where(is_plot, _column(items, 48, "010"), _column(items, 34, "010")), 2)
     time_offsets = np.where(is_plot, _column(items, 48, "140"), _column(items, 34, "030"))
+    adsb = decode_cat021_records(buf, items[is_adsb], origin)
     time_of_day = _unsigned(buf, time_offsets, 3) * u.TIME_LSB_S
+    time_of_day[is_adsb] = adsb["time_of_day_s"]
+    sac_sic[is_adsb] = (adsb["sac"] << 8) | adsb["sic"]
     time = np.full(cat.size, np.nan)
-    time[usable] = unwrap_time_of_day(time_of_day[usable], sac_sic[usable])
+    # CAT021 unwraps apart from the radars: a ground station may share a radar's SAC/SIC
+    time[usable] = unwrap_time_of_day(time_of_day[usable], (sac_sic + (is_adsb.astype(np.int64) << 16))[usable])
+    adsb["time"] = time[is_adsb]
     sac, sic = sac_sic >> 8, sac_sic & 0xFF
     names_given = sensor_names or {}
     names = _text_by_value(sac_sic, np.ones(sac_sic.size, bool),
@@ -187,4 +209,5 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
         "time_of_day_s": time_of_day[is_service],
     }
     report = DecodeProblems(problems=problems, blocks=n_blocks, records=int(cat.size))
-    return DecodedAsterix(plots=plots, service=service, problems=report)
+    adsb["sensor"] = names[is_adsb]
+    return DecodedAsterix(plots=plots, service=service, problems=report, adsb=adsb)

@@ -4,10 +4,11 @@ The one sequential part of decoding: where record k+1 starts depends on the leng
 record k, which depends on its FSPEC and on variable-length items.  A compiled scan
 (numba) walks all blocks and records once and writes, for every record, its category,
 block, start offset and the byte offsets of the items the decoder reads (I048/010, 140,
-020, 040, 070, 090, 220; I034/010, 000, 030, 020); the items themselves are then decoded
+020, 040, 070, 090, 220; I034/010, 000, 030, 020; I021/010, 040, 071, 073, 130, 131, 140,
+145, 080, 170, 090, 160, 157, 155); the items themselves are then decoded
 with numpy over all records at once (``decode``).  Items the decoder does not read are
 skipped by their structure from the UAP tables below (CAT048 edition 1.32, CAT034 edition
-1.29): fixed, extended (FX per octet), repetitive, explicit (SP, RE) and compound items.
+1.29, CAT021 edition 2.6): fixed, extended (FX per octet), repetitive, explicit (SP, RE) and compound items.
 
 Problems (bad block length, unknown category, truncated record, unknown FRN, empty FSPEC)
 are written to arrays with their byte offsets; after a bad block length the scan looks for
@@ -22,10 +23,11 @@ from numba import njit
 
 FIXED, EXTENDED, REPETITIVE, EXPLICIT, COMPOUND = 1, 2, 3, 4, 5
 
-CATEGORIES = (48, 34)
+CATEGORIES = (48, 34, 21)
 #: column of each read item in the offsets table, per category
-ITEMS_READ = {48: ("010", "140", "020", "040", "070", "090", "220"), 34: ("010", "000", "030", "020")}
-N_READ = 7
+ITEMS_READ = {48: ("010", "140", "020", "040", "070", "090", "220"), 34: ("010", "000", "030", "020"),
+              21: ("010", "040", "071", "073", "130", "131", "140", "145", "080", "170", "090", "160", "157", "155")}
+N_READ = max(len(items) for items in ITEMS_READ.values())
 
 # (item, kind, size, compound subitems as (kind, size) or None), in UAP (FRN) order
 _UAP = {
@@ -46,10 +48,27 @@ _UAP = {
         ("070", REPETITIVE, 2, None), ("100", FIXED, 8, None), ("110", FIXED, 1, None), ("120", FIXED, 8, None),
         ("090", FIXED, 2, None), ("RE", EXPLICIT, 0, None), ("SP", EXPLICIT, 0, None),
     ],
+    21: [
+        ("010", FIXED, 2, None), ("040", EXTENDED, 1, None), ("161", FIXED, 2, None), ("015", FIXED, 1, None),
+        ("071", FIXED, 3, None), ("130", FIXED, 6, None), ("131", FIXED, 8, None), ("072", FIXED, 3, None),
+        ("150", FIXED, 2, None), ("151", FIXED, 2, None), ("080", FIXED, 3, None), ("073", FIXED, 3, None),
+        ("074", FIXED, 4, None), ("075", FIXED, 3, None), ("076", FIXED, 4, None), ("140", FIXED, 2, None),
+        ("090", EXTENDED, 1, None), ("210", FIXED, 1, None), ("070", FIXED, 2, None), ("230", FIXED, 2, None),
+        ("145", FIXED, 2, None), ("152", FIXED, 2, None), ("200", FIXED, 1, None), ("155", FIXED, 2, None),
+        ("157", FIXED, 2, None), ("160", FIXED, 4, None), ("165", FIXED, 2, None), ("077", FIXED, 3, None),
+        ("170", FIXED, 6, None), ("020", FIXED, 1, None),
+        ("220", COMPOUND, 0, [(FIXED, 2), (FIXED, 2), (FIXED, 2), (FIXED, 1)]),
+        ("146", FIXED, 2, None), ("148", FIXED, 2, None), ("110", COMPOUND, 0, [(EXTENDED, 1), (REPETITIVE, 15)]),
+        ("016", FIXED, 1, None), ("008", FIXED, 1, None), ("271", EXTENDED, 1, None), ("132", FIXED, 1, None),
+        ("250", REPETITIVE, 8, None), ("260", FIXED, 7, None), ("400", FIXED, 1, None),
+        ("295", COMPOUND, 0, [(FIXED, 1)] * 23),
+        ("", 0, 0, None), ("", 0, 0, None), ("", 0, 0, None), ("", 0, 0, None), ("", 0, 0, None),  # spare FRN 43-47
+        ("RE", EXPLICIT, 0, None), ("SP", EXPLICIT, 0, None),
+    ],
 }
 
-MAX_FRN = 28
-MAX_SUB = 8
+MAX_FRN = max(len(uap) for uap in _UAP.values())
+MAX_SUB = 28  # a compound item's FSPEC of up to 4 octets (I021/295 has 23 subitems)
 
 
 def _tables() -> tuple[np.ndarray, ...]:
@@ -230,7 +249,8 @@ def scan_records(data: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.
     rec_cat = np.empty(max_records, np.int64)
     rec_block = np.empty(max_records, np.int64)
     rec_start = np.empty(max_records, np.int64)
-    rec_items = np.empty((max_records, N_READ), np.int64)
+    # item offsets as int32 when they fit: 4 bytes per read item and possible record, not 8
+    rec_items = np.empty((max_records, N_READ), np.int32 if n < 2**31 - 1 else np.int64)
     prob = [np.empty(max_problems, np.int64) for _ in range(5)]
     nrec, nprob, nblocks = scan(data, *TABLES, rec_cat, rec_block, rec_start, rec_items, *prob)
     records = {"cat": rec_cat[:nrec], "block": rec_block[:nrec], "start": rec_start[:nrec], "items": rec_items[:nrec]}

@@ -22,6 +22,9 @@ REQUIRED_ITEMS = {48: ("010", "140", "040"), 34: ("010", "000", "030")}
 MISSING_ITEM = {(cat, item): f"record without I{cat:03d}/{item}" for cat, items in REQUIRED_ITEMS.items()
                 for item in items}
 NO_POSITION = MISSING_ITEM[48, "040"]
+#: a CAT021 record needs one item of each group (I021/010, 080, a time, a position, a height)
+CAT021_REQUIRED = (("010",), ("080",), ("071", "073"), ("131", "130"), ("140", "145"))
+MISSING_CAT021 = tuple("record without I021/" + " or ".join(group) for group in CAT021_REQUIRED)
 
 PROBLEM_KINDS = {
     1: BAD_BLOCK_LENGTH,
@@ -52,7 +55,7 @@ class AsterixProblem:
             UNSUPPORTED_ITEM: f"FRN {self.detail}",
             TRUNCATED_RECORD: f"record needs more bytes than its block holds (FRN {self.detail})",
             EMPTY_RECORD: "FSPEC without items",
-        }.get(self.kind, "record skipped" if self.kind in MISSING_ITEM.values() else str(self.detail))
+        }.get(self.kind, "record skipped" if self.kind in (*MISSING_ITEM.values(), *MISSING_CAT021) else str(self.detail))
         return f"byte offset {self.offset} (block {self.block}): {self.kind}: {what}; {self.skipped_bytes} bytes skipped"
 
 
