@@ -20,6 +20,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from skytrack.cli.study_output import SchedulerOption, WorkersOption, study_executor
+
 console = Console()
 error_console = Console(stderr=True)
 
@@ -100,6 +102,8 @@ def turn_rate_adaptive(
     imm: Annotated[bool, typer.Option("--imm/--no-imm", help="Run spec 004's IMM (cv-ct) on the position data.")] = True,
     check: Annotated[bool, typer.Option("--check", help="Exit with code 1 if an expected value of the spec fails.")]
     = False,
+    workers: WorkersOption = None,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """E3/E4 (spec 002 §6): adaptive turn-rate identification vs fixed V_w, literal (7) and an IMM."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -123,10 +127,11 @@ def turn_rate_adaptive(
         out = Path("study-turn-rate-adaptive" + ("-qdep0" if q_dep == 0 else ""))
     columns = (TextColumn("[bold]turn-rate-adaptive"), TextColumn("{task.description}"), BarColumn(),
                MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=error_console, transient=False) as display:
+    with study_executor(error_console, workers, scheduler) as executor, \
+            Progress(*columns, console=error_console, transient=False) as display:
         task = display.add_task("configurations", total=job_count(period_list, measurement_list, imm))
         result = run_study(out, runs=runs, seed=seed, periods=period_list, measurements=measurement_list,
-                           q_accel=q_dep, truth_rate=truth_rate, imm=imm,
+                           q_accel=q_dep, truth_rate=truth_rate, imm=imm, executor=executor,
                            progress=lambda label: display.update(task, advance=1, description=label))
     for T in period_list:
         for measurement in measurement_list:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -47,34 +48,68 @@ def job_count(periods, measurements, imm: bool = True) -> int:
     return len(periods) * (len(measurements) * len(sc.CONFIGURATIONS) + (1 if with_imm else 0))
 
 
+@dataclass(frozen=True)
+class ConfigurationTask:
+    """One task (issue 11 item 6): one configuration (``None``: the IMM) on one setup's ``runs`` runs."""
+
+    T: float
+    measurement: str
+    configuration: Optional[sc.Configuration]
+    runs: int
+    seed: int
+    truth_rate: str
+    q_accel: float
+
+
+@lru_cache(maxsize=2)
+def _setup(T: float, measurement: str, runs: int, seed: int, truth_rate: str):
+    # every configuration of a setup sees the same draws: a worker that gets several simulates once
+    return simulate_setup(T, measurement, runs, seed, truth_rate)
+
+
+def configuration_task(task: ConfigurationTask) -> Summary:
+    """The metrics of one configuration on one setup (pure: the task in, a :class:`Summary` out)."""
+    times, truth, measurements_k, velocity0 = _setup(task.T, task.measurement, task.runs, task.seed, task.truth_rate)
+    if task.configuration is None:
+        runset = run_imm(task.T, times, truth, measurements_k, velocity0)
+    else:
+        runset = run_configuration(task.configuration, task.T, task.measurement, times, truth, measurements_k,
+                                   velocity0, task.q_accel)
+    return summarize(runset, task.T, task.measurement, task.q_accel)
+
+
 def run_summaries(runs: int, seed: int, periods, measurements, q_accel: float = sc.PRESET_Q_ACCEL,
                   truth_rate: str = "start", imm: bool = True, configurations=sc.CONFIGURATIONS,
-                  progress: ProgressCallback = None) -> list[Summary]:
-    """The metrics of every (T, measurement set, configuration); no files."""
-    summaries = []
+                  progress: ProgressCallback = None, executor=None) -> list[Summary]:
+    """The metrics of every (T, measurement set, configuration); no files.  Every configuration of every
+    setup is one :class:`ConfigurationTask` mapped over ``executor`` (``None``: in this process);
+    ``progress(label)`` after each."""
+    from skytrack.studies.parallel import map_tasks
+
+    tasks = []
     for T in periods:
         for measurement in measurements:
-            times, truth, measurements_k, velocity0 = simulate_setup(T, measurement, runs, seed, truth_rate)
-            for config in configurations:
-                runset = run_configuration(config, T, measurement, times, truth, measurements_k, velocity0, q_accel)
-                summaries.append(summarize(runset, T, measurement, q_accel))
-                if progress is not None:
-                    progress(f"T={T:g} {measurement} {config.key}")
+            tasks += [ConfigurationTask(T, measurement, config, runs, seed, truth_rate, q_accel)
+                      for config in configurations]
             if imm and measurement == "pos":
-                runset = run_imm(T, times, truth, measurements_k, velocity0)
-                summaries.append(summarize(runset, T, measurement, q_accel))
-                if progress is not None:
-                    progress(f"T={T:g} {measurement} imm")
-    return summaries
+                tasks.append(ConfigurationTask(T, measurement, None, runs, seed, truth_rate, q_accel))
+
+    def report(done: int, total: int) -> None:
+        if progress is not None and done > 0:
+            progress(f"{done}/{total} configurations")
+
+    return map_tasks(configuration_task, tasks, executor, report)
 
 
 def run_study(out: Path, runs: int = 100, seed: int = 1, periods=(1.0, 4.0), measurements=("pos", "pos+rdot"),
               q_accel: float = sc.PRESET_Q_ACCEL, truth_rate: str = "start", imm: bool = True,
-              progress: ProgressCallback = None) -> StudyResult:
-    """Run E3 (``q_accel = 1``) or E4 (``q_accel = 0``) and write CSV, PNG and JSON to ``out``."""
+              progress: ProgressCallback = None, executor=None) -> StudyResult:
+    """Run E3 (``q_accel = 1``) or E4 (``q_accel = 0``) and write CSV, PNG and JSON to ``out``; the tasks run
+    on ``executor`` (any ``concurrent.futures`` executor, ``None``: in this process)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    summaries = run_summaries(runs, seed, periods, measurements, q_accel, truth_rate, imm, progress=progress)
+    summaries = run_summaries(runs, seed, periods, measurements, q_accel, truth_rate, imm, progress=progress,
+                              executor=executor)
     table = pd.DataFrame(table_rows(summaries))
     checks = expected_checks(summaries)
     paths = [out / CSV_NAME, out / CHECKS_NAME, out / JSON_NAME]
