@@ -151,7 +151,7 @@ def run_tracking(
     report_progress("track", 0, total)
     first_time, last_time = math.inf, -math.inf
     events = IdentityEventWriter(events_path)
-    with TrackWriter(out) as writer:
+    with TrackWriter(out, sensors=sensor_set) as writer:
         for chunk in iter_plot_batches(plots_path, read_set, lenient, chunk_rows=chunk_rows, report=report,
                                        units_confirmed=units_confirmed,
                                        range_rate_positive_closing=range_rate_positive_closing):

@@ -203,7 +203,7 @@ def track(
     ctx: typer.Context,
     plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
     sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv; .ast: ASTERIX CAT062 system tracks).")],
     model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = defaults.MODEL,
     q: Annotated[float, typer.Option("--q", help="CV white-noise acceleration PSD (m^2/s^3).")] = defaults.CV_Q,
     tau: Annotated[float, typer.Option("--tau", help="Singer manoeuvre time constant (s).")] = defaults.SINGER_TAU_S,

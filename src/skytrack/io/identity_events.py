@@ -54,7 +54,11 @@ EVENT_ARROW_SCHEMA = pa.schema([
 
 def identity_events_path(tracks_path: str | Path) -> Path:
     """The identity-events file of a tracks file: ``NAME.identity`` + the tracks file's extension."""
+    from skytrack.io.asterix.cat062 import beside_asterix, is_asterix_path  # the asterix package loads numba
+
     path = Path(tracks_path)
+    if is_asterix_path(path):
+        return beside_asterix(path, "identity")
     table_format(path)  # an unsupported extension is an error here too
     name = path.name
     suffix = next(s for s in sorted(CSV_SUFFIXES + PARQUET_SUFFIXES, key=len, reverse=True)

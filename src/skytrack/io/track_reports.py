@@ -27,7 +27,11 @@ _COVARIANCE_CELLS = {"var_x": (0, 0), "var_y": (1, 1), "var_z": (2, 2), "cov_xy"
 
 def track_reports_path(tracks_path: str | Path) -> Path:
     """``NAME.reports`` + the tracks file's extension."""
+    from skytrack.io.asterix.cat062 import beside_asterix, is_asterix_path  # the asterix package loads numba
+
     path = Path(tracks_path)
+    if is_asterix_path(path):
+        return beside_asterix(path, "reports")
     table_format(path)
     name = path.name
     suffix = next(s for s in sorted(CSV_SUFFIXES + PARQUET_SUFFIXES, key=len, reverse=True)

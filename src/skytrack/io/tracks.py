@@ -191,17 +191,23 @@ class TrackWriter:
     Arrow schema is fixed from the FORMATS.md column kinds (extra columns take the
     first chunk's types), so chunks whose identity columns happen to be all-null
     still append.  Parquet files are written one row group per chunk; CSV files are
-    appended.  Use as a context manager.
+    appended.  A ``.ast`` file is written as ASTERIX CAT062 system tracks
+    (:class:`~skytrack.io.asterix.cat062.Cat062Writer`, issue 11 item 2), with the system
+    SAC/SIC and the epoch's time of day from ``sensors`` (a ``SensorSet``), and the run
+    metadata in the sidecar ``NAME.ast.meta.json``.  Use as a context manager.
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, sensors=None):
+        from skytrack.io.asterix.cat062 import Cat062Writer, is_asterix_path  # the asterix package loads numba
+
         self.path = Path(path)
-        self.format = table_format(self.path)
+        self.format = "asterix" if is_asterix_path(self.path) else table_format(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._schema: pa.Schema | None = None
         self._writer = None
         self._stream = None
         self.rows = 0
+        self._cat062 = Cat062Writer(self.path, sensors) if self.format == "asterix" else None
         self.run_metadata: dict | None = None
         """what the run knew of its input (epoch, time span), stored with the file on closing
         (:func:`read_tracks_metadata`)"""
@@ -223,6 +229,11 @@ class TrackWriter:
         A pyarrow Table (:meth:`~skytrack.tracker.Tracker.drain_arrow`) is written as it is when
         ``checked``, else validated like a DataFrame; ``None`` writes nothing."""
         if chunk is None or len(chunk) == 0:
+            return
+        if self._cat062 is not None:
+            frame = arrow_to_frame(chunk) if isinstance(chunk, pa.Table) else chunk
+            self._cat062.write(frame if checked else _tracks_to_write(frame, self.path))
+            self.rows += len(frame)
             return
         if isinstance(chunk, pa.Table) and checked:
             table = _with_missing_arrow_columns(chunk, TRACK_SCHEMA)
@@ -257,6 +268,10 @@ class TrackWriter:
         self.rows += len(table)
 
     def close(self) -> None:
+        if self._cat062 is not None:
+            self._cat062.close()  # no row: an empty file, a valid ASTERIX recording of no record
+            self._write_sidecar()
+            return
         if self._writer is None:
             # nothing was written: still leave a valid, empty tracks file
             write_tracks(add_missing_columns(pd.DataFrame({c: [] for c in TRACK_SCHEMA.required}), TRACK_SCHEMA), self.path)
@@ -287,7 +302,7 @@ METADATA_KEY = "skytrack.run"
 
 
 def sidecar_path(path: str | Path) -> Path:
-    """Where the run metadata of a CSV tracks file lives: ``tracks.csv`` -> ``tracks.csv.meta.json``."""
+    """Where the run metadata of a CSV or ASTERIX tracks file lives: ``tracks.csv`` -> ``tracks.csv.meta.json``."""
     path = Path(path)
     return path.with_name(path.name + ".meta.json")
 
@@ -295,9 +310,11 @@ def sidecar_path(path: str | Path) -> Path:
 def read_tracks_metadata(path: str | Path) -> dict | None:
     """The run metadata a :class:`TrackWriter` stored with a tracks file (epoch, the input's
     time span), or ``None`` for files written otherwise."""
+    from skytrack.io.asterix.cat062 import is_asterix_path
+
     path = Path(path)
     try:
-        if table_format(path) == "parquet":
+        if not is_asterix_path(path) and table_format(path) == "parquet":
             stored = (pq.read_metadata(path).metadata or {}).get(METADATA_KEY.encode())
             return None if stored is None else json.loads(stored)
         sidecar = sidecar_path(path)

@@ -1,0 +1,86 @@
+"""ASTERIX output of the pipelines (issue 11 item 2): ``track ... -o tracks.ast`` (CAT062) decoded with
+libasterix against the Parquet tracks of the same run."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skytrack.app.run import run_tracking
+from skytrack.app.simulate import run_simulation, write_simulation
+from skytrack.io import read_sensors, read_tracks
+from skytrack.io.asterix.cat062 import decode_cat062, time_of_day_at_epoch
+from skytrack.io.tracks import read_tracks_metadata
+
+
+@pytest.fixture(scope="module")
+def crossing(tmp_path_factory):
+    out = tmp_path_factory.mktemp("crossing")
+    paths = write_simulation(run_simulation("crossing", seed=5), out, "parquet")
+    sensors = json.loads(paths["sensors"].read_text())
+    sensors["system"] = {"sac": 25, "sic": 201}
+    paths["sensors"].write_text(json.dumps(sensors))
+    return paths
+
+
+def _libasterix_records(data: bytes) -> list:
+    """Every record of ``data`` parsed by libasterix itself (independently of skytrack's decoder)."""
+    import asterix.generated as gen
+    from asterix.base import Bits, RawDatablock
+
+    blocks = RawDatablock.parse(Bits.from_bytes(data))
+    assert not isinstance(blocks, ValueError)
+    records = []
+    for block in blocks:
+        assert block.get_category() == 62
+        parsed = gen.Cat_062_1_21.cv_uap.parse(block.get_raw_records())
+        assert not isinstance(parsed, ValueError)
+        records.extend(parsed)
+    return records
+
+
+def test_tracks_ast_decodes_to_the_parquet_tracks_within_the_cat062_resolutions(crossing, tmp_path):
+    parquet = run_tracking(crossing["plots"], crossing["sensors"], tmp_path / "tracks.parquet", chunk_rows=150)
+    asterix = run_tracking(crossing["plots"], crossing["sensors"], tmp_path / "tracks.ast", chunk_rows=150)
+    want = read_tracks(tmp_path / "tracks.parquet")
+    assert asterix.track_rows == parquet.track_rows == len(want) > 100
+    data = (tmp_path / "tracks.ast").read_bytes()
+
+    # libasterix alone: one record per row, track numbers, position (0.5 m) and time (1/128 s)
+    records = _libasterix_records(data)
+    assert len(records) == len(want)
+    sensors = read_sensors(crossing["sensors"])
+    epoch_tod = time_of_day_at_epoch(sensors.epoch_utc)
+    assert epoch_tod == 8 * 3600.0
+    numbers = np.array([r.get_item("040").as_uint() for r in records])
+    assert (numbers == want["track_id"].to_numpy() % 65536).all()
+    x = np.array([r.get_item("100").variation.get_item("X").variation.content.as_quantity("m") for r in records])
+    assert np.abs(x - want["x"].to_numpy()).max() <= 0.25 + 1e-9
+    tod = np.array([r.get_item("070").variation.content.as_quantity("s") for r in records])
+    assert np.abs(tod - epoch_tod - want["time"].to_numpy()).max() <= 1 / 256 + 1e-9
+    sac_sic = {(r.get_item("010").variation.get_item("SAC").as_uint(), r.get_item("010").variation.get_item("SIC").as_uint())
+               for r in records}
+    assert sac_sic == {(25, 201)}
+
+    # every column skytrack writes, through decode_cat062 (libasterix underneath)
+    got = decode_cat062(data, time_of_day_at_epoch_s=epoch_tod, origin=sensors.origin)
+    tolerances = {"time": 1 / 256, "x": 0.25, "y": 0.25, "vx": 0.125, "vy": 0.125, "lat": 90 / 2**25,
+                  "lon": 90 / 2**25, "alt_m": 12.5 * 0.3048}  # 2-D: alt_m is the Mode C height, I062/136 (1/4 FL)
+    for name, tolerance in tolerances.items():
+        error = np.abs(got[name].to_numpy(float) - want[name].to_numpy(float))
+        assert np.isnan(error).sum() == want[name].isna().sum() == 0 and error.max() <= tolerance + 1e-9, name
+    for name in ("status", "mode3a"):
+        assert [None if pd.isna(v) else v for v in got[name]] == [None if pd.isna(v) else v for v in want[name]], name
+    assert want["mode3a"].notna().any() and set(want["status"]) == {"confirmed", "coasting"}
+    assert (got["track_id"].to_numpy() == want["track_id"].to_numpy()).all()  # < 65 536 here
+    std = np.sqrt(want["var_x"].to_numpy())
+    assert np.abs(np.sqrt(got["var_x"].to_numpy()) - np.minimum(std, 32767.5)).max() <= 0.25 + 1e-9
+
+    # the run metadata Parquet keeps inside the file is in the sidecar tracks.ast.meta.json
+    assert read_tracks_metadata(tmp_path / "tracks.ast") == read_tracks_metadata(tmp_path / "tracks.parquet")
+    assert (tmp_path / "tracks.ast.meta.json").exists()
+    # identity events beside it stay a table
+    assert asterix.identity_events_file == str(tmp_path / "tracks.identity.parquet")
