@@ -195,6 +195,25 @@ def test_damaged_checkpoints_are_refused_naming_the_file(saved, demo, tmp_path):
         load_checkpoint(other, demo.sensors, TrackerConfig())
 
 
+def test_a_failed_write_leaves_the_previous_checkpoint(saved, demo, monkeypatch):
+    """The new checkpoint goes to a temporary file first: a write that fails half-way (disk full)
+    leaves the previous checkpoint whole and no temporary file behind."""
+    before = saved.read_bytes()
+    tracker, _ = load_checkpoint(saved, demo.sensors, TrackerConfig())
+    tracker.feed(chunks_of(demo.plots)[3])
+
+    def disk_full(handle, **arrays):
+        handle.write(b"PK\x03\x04 half an archive")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", disk_full)
+    with pytest.raises(OSError, match="No space left on device"):
+        save_checkpoint(saved, tracker)
+    assert saved.read_bytes() == before
+    assert sorted(p.name for p in saved.parent.iterdir()) == ["state.npz"]
+    assert len(load_checkpoint(saved, demo.sensors, TrackerConfig())[0].bank) > 0
+
+
 # ---------------------------------------------------------------------------- kill -9
 TRACK_AND_CHECKPOINT = textwrap.dedent("""
     # tracks the plots in chunks, checkpointing after every chunk (as the service does every few seconds)
