@@ -5,6 +5,10 @@ options of R24::
 
     skytrack study <name> [--runs N] [--seed S] [--scenario NAME|FILE] [--truth FILE]
                           [--filters LIST] [--config FILE] [--out DIR] [--quick] [--check]
+                          [--workers N] [--scheduler ADDRESS]
+
+``--workers``/``--scheduler`` (issue 11 item 6) choose where the filter runs of the study's
+comparisons (``ctx.compare``) run: in process, a local process pool (default) or a Dask cluster.
 
 The command parses the options, runs :func:`skytrack.studies.maneuver.study.run_study` with a
 rich progress bar over the filter runs, prints the claims (assert verdicts and report values)
@@ -24,6 +28,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from skytrack.cli.study_output import SchedulerOption, WorkersOption, study_executor
 from skytrack.studies.maneuver.names import STUDY_MODULES
 
 console = Console()
@@ -77,6 +82,8 @@ def _make_command(name: str):
         out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Output folder (default: study-<name>).")] = None,
         quick: Annotated[bool, typer.Option("--quick", help="A few runs (smoke test of the study).")] = False,
         check: Annotated[bool, typer.Option("--check", help="Exit with code 1 if an assert claim fails.")] = False,
+        workers: WorkersOption = None,
+        scheduler: SchedulerOption = None,
     ) -> None:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -91,14 +98,15 @@ def _make_command(name: str):
             _fail(str(exc))
         columns = (TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
         try:
-            with Progress(*columns, console=error_console, transient=False) as display:
+            with study_executor(error_console, workers, scheduler) as executor, \
+                    Progress(*columns, console=error_console, transient=False) as display:
                 task = display.add_task(name, total=None)
 
                 def progress(description: str, completed: int, total: int) -> None:
                     display.update(task, completed=completed, total=total,
                                    description=f"{name} {description}" if description else name)
 
-                result = run_study(definition, options, progress)
+                result = run_study(definition, options, progress, executor)
         except (ValueError, FileNotFoundError) as exc:
             _fail(str(exc))
         claims = json.loads(result.paths["claims"].read_text(encoding="utf-8"))["claims"]

@@ -81,8 +81,21 @@ def batches(count: int, size: int = RUNS_PER_TASK) -> list[range]:
     return [range(start, min(start + size, count)) for start in range(0, count, size)]
 
 
+#: environment variable that sets the default of ``--workers`` (the test suite sets it to 1: in process)
+WORKERS_ENV = "SKYTRACK_WORKERS"
+
+
 def default_workers() -> int:
-    """Worker processes of the default pool: the CPUs this process may run on."""
+    """Worker processes of the default pool: ``$SKYTRACK_WORKERS`` if set, else the CPUs this process may run on."""
+    text = os.environ.get(WORKERS_ENV, "").strip()
+    if text:
+        try:
+            value = int(text)
+        except ValueError:
+            raise ExecutorError(f"{WORKERS_ENV} must be a positive integer, got {text!r}") from None
+        if value < 1:
+            raise ExecutorError(f"{WORKERS_ENV} must be a positive integer, got {text!r}")
+        return value
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux

@@ -117,13 +117,37 @@ def load_config(path: str | Path | None) -> dict:
     return values
 
 
+@dataclass(frozen=True)
+class FilterTask:
+    """One filter run of :meth:`StudyContext.compare` as a pure task (issue 11 item 6): the case, its
+    simulated measurements (every run of the case), the filter and the runner's options in."""
+
+    case: Case
+    meas: MeasurementSet
+    spec: FilterSpec
+    gating: str
+    record: bool
+
+
+def filter_task(task: FilterTask) -> FilterRun:
+    """Run the task's filter on every run of its case (:func:`skytrack.studies.maneuver.runner.run_filter`)."""
+    case, spec, meas = task.case, task.spec, task.meas
+    filt, _ = spec.build(FilterSetting(case.dt, meas.R[0] * spec.r_scale, case.sensor.position))
+    return run_filter(filt, case, meas, label=spec.label, options=RunOptions(gating=task.gating, record=task.record),
+                      r_scale=spec.r_scale, initiation=spec.initiation)
+
+
 @dataclass
 class StudyContext:
-    """What a study's ``run`` uses (module docstring); collects summary, series, claims and figures."""
+    """What a study's ``run`` uses (module docstring); collects summary, series, claims and figures.
+
+    With an ``executor`` (any ``concurrent.futures`` executor) :meth:`compare` maps its filter runs
+    over it as :class:`FilterTask` s; :meth:`run` always runs here."""
 
     definition: StudyDefinition
     options: StudyOptions
     progress: Progress | None = None
+    executor: object = None
     summary: list = field(default_factory=list)
     series: list = field(default_factory=list)
     timing: list = field(default_factory=list)
@@ -233,20 +257,40 @@ class StudyContext:
     def run(self, case: Case, spec: FilterSpec, *, gating: str = "off", record: bool = False, mode: str = "polar",
             sigma_m: float | None = None) -> FilterRun:
         """Run one filter on every run of ``case`` (:func:`skytrack.studies.maneuver.runner.run_filter`)."""
-        meas = self.measurements(case, mode, sigma_m)
-        filt, _ = spec.build(FilterSetting(case.dt, meas.R[0] * spec.r_scale, case.sensor.position))
         if self._done >= self._total:
             self._total = self._done + 1
         self._report(f"{spec.label} · {case.label} · gating {gating}")
-        result = run_filter(filt, case, meas, label=spec.label, options=RunOptions(gating=gating, record=record),
-                            r_scale=spec.r_scale, initiation=spec.initiation)
+        result = filter_task(FilterTask(case, self.measurements(case, mode, sigma_m), spec, gating, record))
         self._done += 1
         self._report(f"{spec.label} · {case.label} · gating {gating}")
+        self._time(result, case, spec, gating, mode, record)
+        return result
+
+    def _time(self, result: FilterRun, case: Case, spec: FilterSpec, gating: str, mode: str, record: bool) -> None:
         if gating == "off":
             self.timing.append({"case": case.label, "filter": spec.label, "measurement": mode, "recorded": record,
                                 "runs": self.runs, "scans": case.scans, "us_per_update": result.us_per_update,
                                 "madds_per_update": result.madds_per_update})
-        return result
+
+    def _run_all(self, cases: list[Case], specs: list[FilterSpec], gatings: tuple[str, ...], mode: str,
+                 sigma_m: float | None, record: bool) -> list[FilterRun]:
+        """Every (case, filter, gating) run in this order, on ``self.executor`` when there is one."""
+        keys = [(case, spec, g) for case in cases for spec in specs for g in gatings]
+        if self.executor is None:
+            return [self.run(c, s, gating=g, record=record, mode=mode, sigma_m=sigma_m) for c, s, g in keys]
+        from skytrack.studies.parallel import map_tasks
+
+        tasks = [FilterTask(c, self.measurements(c, mode, sigma_m), s, g, record) for c, s, g in keys]
+        start = self._done
+
+        def report(done: int, total: int) -> None:
+            self._done = start + done
+            self._report(f"{done}/{total} filter runs")
+
+        results = map_tasks(filter_task, tasks, self.executor, report)
+        for (c, s, g), result in zip(keys, results):
+            self._time(result, c, s, g, mode, record)
+        return results
 
     def compare(self, cases: list[Case], specs: list[FilterSpec], *, gatings: tuple[str, ...] | None = None,
                 mode: str = "polar", sigma_m: float | None = None, record: bool = False,
@@ -259,9 +303,10 @@ class StudyContext:
         gatings = tuple(gatings or self.gatings)
         self.expect(len(cases) * len(specs) * len(gatings))
         rows, kept = [], {}
+        done = iter(self._run_all(cases, specs, gatings, mode, sigma_m, record))
         for case in cases:
             for spec in specs:
-                runs = {g: self.run(case, spec, gating=g, record=record, mode=mode, sigma_m=sigma_m) for g in gatings}
+                runs = {g: next(done) for g in gatings}
                 loss = {g: float(r.lost.mean()) for g, r in runs.items()}
                 main = runs.get("off") or next(iter(runs.values()))
                 summary, series = evaluate_run(case, main, self.metric_settings, loss)
@@ -338,9 +383,11 @@ class StudyResult:
         return [c for c in self.claims if c.kind == "assert" and not c.verdict]
 
 
-def run_study(definition: StudyDefinition, options: StudyOptions, progress: Progress | None = None) -> StudyResult:
-    """Run a study and write its outputs (R23) into ``options.out``."""
-    ctx = StudyContext(definition, options, progress)
+def run_study(definition: StudyDefinition, options: StudyOptions, progress: Progress | None = None,
+              executor=None) -> StudyResult:
+    """Run a study and write its outputs (R23) into ``options.out``; its filter comparisons run on
+    ``executor`` (any ``concurrent.futures`` executor, ``None``: in this process)."""
+    ctx = StudyContext(definition, options, progress, executor)
     ctx.out.mkdir(parents=True, exist_ok=True)
     definition.run(ctx)
     out = ctx.out
