@@ -133,3 +133,23 @@ def test_state_of_another_filter_is_refused(demo):
     arrays, meta = tracker.checkpoint()
     with pytest.raises(ValueError, match="ManoeuvreState filter states; this tracker's filter keeps MixtureState"):
         Tracker.restore(demo.sensors, config_of("imm"), arrays, meta)
+
+
+@pytest.mark.parametrize("scenario", ["two_radars", "radar3d", "airborne_crossing"])
+def test_restored_tracker_continues_exactly_on_other_sensors(scenario):
+    """Two merged radars (sectors, several clutter maps), a 3-D radar with range rates, and an
+    airborne radar (no antenna schedule: the composed, not the compiled, window path)."""
+    run = simulate(load_scenario(scenario))
+    step = max(200, len(run.plots) // 12)
+    chunks = [run.plots.iloc[start:start + step] for start in range(0, len(run.plots), step)]
+    original = Tracker(run.sensors, TrackerConfig())
+    for chunk in chunks[:5]:
+        original.feed(chunk)
+    original.drain()
+    restored = Tracker.restore(run.sensors, TrackerConfig(), *original.checkpoint())
+    for chunk in chunks[5:]:
+        original.feed(chunk)
+        restored.feed(chunk)
+    original.finish()
+    restored.finish()
+    assert_same_tracks(original.drain(), restored.drain())
