@@ -60,6 +60,9 @@ class Sensor:
     min_elevation_deg: float | None = None
     p_detection: float | None = None
     clutter_per_scan: float | None = None
+    #: ASTERIX System Area Code and System Identification Code (I048/010, I021/010), 0-255 each
+    sac: int | None = None
+    sic: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     # filled by SensorSet.resolve()
     position: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
@@ -99,6 +102,9 @@ class Sensor:
 
     def to_dict(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in ("extra", "position", "rotation")}
+        for key in ("sac", "sic"):  # written only when given: files without ASTERIX stay as they were
+            if out[key] is None:
+                del out[key]
         out.update(self.extra)
         return out
 
@@ -125,6 +131,10 @@ class SensorSet:
         duplicated = sorted({n for n in names if names.count(n) > 1})
         if duplicated:
             raise ValueError(f"sensor names must be unique; repeated: {', '.join(duplicated)}")
+        pairs = [(s.sac, s.sic) for s in self.sensors if s.sac is not None or s.sic is not None]
+        repeated = sorted({p for p in pairs if pairs.count(p) > 1})
+        if repeated:
+            raise ValueError(f"ASTERIX sac/sic must be unique; repeated: {', '.join(f'{a}/{b}' for a, b in repeated)}")
         for sensor in self.sensors:
             self._resolve(sensor)
 
@@ -141,6 +151,10 @@ class SensorSet:
     @property
     def names(self) -> list[str]:
         return [s.name for s in self.sensors]
+
+    def by_sac_sic(self) -> dict[tuple[int, int], str]:
+        """Sensor name by its ASTERIX (SAC, SIC), for the sensors that have them."""
+        return {(s.sac, s.sic): s.name for s in self.sensors if s.sac is not None and s.sic is not None}
 
     def _resolve(self, sensor: Sensor) -> None:
         """Fill ``position`` and ``rotation`` of a sensor from its geodetic or ENU position."""

@@ -10,7 +10,8 @@ surveillance sensor (``_RULES``: e.g. ``0 < sigma_range_m <= 1e5``, ``0.001 <= s
 ``sigma_range_m`` and ``sigma_azimuth_deg``, a ``radar-3d`` also ``sigma_elevation_deg``,
 ground radars (they rotate) ``scan_period_s``;
 a sensor's position is known (lat/lon or x/y, except airborne radars and ADS-B) and,
-when both are given, consistent.
+when both are given, consistent.  ASTERIX identities ``sac`` and ``sic`` (optional, issue
+11): integers in [0, 255], given together, no two sensors with the same pair.
 
 Top-level defaults: a top-level key named like a :class:`~skytrack.geo.Sensor` field
 (e.g. ``"scan_period_s": 4.0``) is the default of every sensor that does not give a
@@ -36,7 +37,9 @@ FORMAT_VERSION = "1"
 
 #: Sensor fields that a file may set (and that may have top-level defaults)
 SENSOR_KEYS = tuple(f.name for f in dataclasses.fields(Sensor) if f.name not in ("extra", "position", "rotation"))
-_NUMERIC_KEYS = tuple(k for k in SENSOR_KEYS if k not in ("name", "type"))
+#: ASTERIX SAC/SIC (issue 11): integers 0-255, given together, a pair used by one sensor only
+_INTEGER_KEYS = ("sac", "sic")
+_NUMERIC_KEYS = tuple(k for k in SENSOR_KEYS if k not in ("name", "type", *_INTEGER_KEYS))
 _TOP_LEVEL_KEYS = ("format_version", "epoch_utc", "origin", "sensors")
 
 # key -> (predicate, rule text)
@@ -147,6 +150,18 @@ def _sensor(raw: Any, index: int, defaults: dict[str, Any], file: str) -> Sensor
             values[key] = _number(merged[key], key, where)
         elif key in merged:
             values[key] = None
+    for key in _INTEGER_KEYS:
+        value = merged.get(key)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise where.error(f"{key} must be an integer in [0, 255] (ASTERIX), got {_show(value)}", key)
+        if not 0 <= value <= 255:
+            raise where.error(f"{key} must be in [0, 255] (an ASTERIX octet), got {_show(value)}", key)
+        values[key] = value
+    if ("sac" in values) != ("sic" in values):
+        missing = "sic" if "sac" in values else "sac"
+        raise where.error(f"{missing} is missing: an ASTERIX source is named by sac and sic together", missing)
     needed = []
     if sensor_type.startswith("radar"):
         needed = ["sigma_range_m", "sigma_azimuth_deg"] + (["sigma_elevation_deg"] if sensor_type == "radar-3d" else [])
@@ -191,12 +206,20 @@ def sensor_set_from_dict(data: Any, file: str = "sensors.json") -> SensorSet:
     defaults = {k: v for k, v in data.items() if k in SENSOR_KEYS and k != "name" and v is not None}
     sensors = [_sensor(raw, i, defaults, file) for i, raw in enumerate(raw_sensors)]
     seen: dict[str, int] = {}
+    seen_pairs: dict[tuple[int, int], int] = {}
     for i, sensor in enumerate(sensors):
         if sensor.name in seen:
             raise _Where(file, f"sensors[{i}] ({sensor.name!r})").error(
                 f"name repeats sensors[{seen[sensor.name]}]", "name"
             )
         seen[sensor.name] = i
+        if sensor.sac is not None:
+            pair = (sensor.sac, sensor.sic)
+            if pair in seen_pairs:
+                raise _Where(file, f"sensors[{i}] ({sensor.name!r})").error(
+                    f"sac/sic {pair[0]}/{pair[1]} repeats sensors[{seen_pairs[pair]}]: each ASTERIX source needs "
+                    "its own pair", "sic")
+            seen_pairs[pair] = i
         try:  # resolves the frame of this sensor alone, to name it in the error
             SensorSet(origin, [dataclasses.replace(sensor, extra=dict(sensor.extra))])
         except ValueError as exc:
