@@ -27,6 +27,7 @@ from skytrack import __version__
 from skytrack.cli import defaults
 from skytrack.cli.identify import identify_app
 from skytrack.cli.observability import observability_app
+from skytrack.cli.serve import register_serve
 from skytrack.cli.study import study_app
 
 app = typer.Typer(
@@ -39,6 +40,7 @@ app = typer.Typer(
 app.add_typer(study_app, name="study")
 app.add_typer(identify_app, name="identify")
 app.add_typer(observability_app, name="observability")
+register_serve(app)
 
 console = Console()
 error_console = Console(stderr=True)
