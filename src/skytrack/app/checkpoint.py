@@ -63,10 +63,12 @@ def _flatten(data, prefix: str = "") -> dict:
     return out
 
 
-def save_checkpoint(path, tracker, labeler=None) -> None:
+def save_checkpoint(path, tracker, labeler=None, *, extra: dict | None = None) -> None:
     """Write ``tracker``'s state (and ``labeler``'s, when given) to ``path`` atomically (see the
     module docstring).  The track rows and identity events not yet drained are part of the state:
-    drain them first when they were written elsewhere, or they are produced again after a restore."""
+    drain them first when they were written elsewhere, or they are produced again after a restore.
+    ``extra``: a JSON-able dict of the caller's own (a service's frame counter...), returned by
+    :func:`read_checkpoint` as ``header["extra"]``."""
     from skytrack.tracker.bank import CONFIRMED
 
     path = Path(path)
@@ -80,6 +82,7 @@ def save_checkpoint(path, tracker, labeler=None) -> None:
         "config": _config_dict(tracker.config), "tracker": meta, "labeler": labeler is not None,
         "tracks": len(tracker.bank), "confirmed_tracks": int((tracker.bank.status == CONFIRMED).sum()),
         "last_plot_s": float(np.max(tracker.schedule.last_time)) if len(tracker.schedule.last_time) else None,
+        "extra": dict(extra) if extra is not None else {},
     }
     payload[HEADER_KEY] = np.frombuffer(json.dumps(header).encode(), np.uint8)
     temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")

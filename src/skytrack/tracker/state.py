@@ -19,7 +19,7 @@ same sensors and configuration.  What is saved:
 
 Nothing is derived from the data alone outside these: the filter, scorer, assigner, measurement
 models and compiled-kernel settings are rebuilt from the configuration.  A restored tracker fed
-the same plots produces the same tracks to the last bit (tests/tracker/test_checkpoint.py).
+the same plots produces the same tracks to the last bit (tests/tracker/test_tracker_checkpoint.py).
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ STATE_FORMAT = 1
 
 
 def _dataclass_arrays(prefix: str, value) -> dict[str, np.ndarray]:
-    """The array fields of a dataclass of arrays (``None`` fields are left out)."""
-    return {f"{prefix}.{f.name}": np.asarray(getattr(value, f.name)) for f in dataclasses.fields(value)
+    """Copies of the array fields of a dataclass of arrays (``None`` fields are left out)."""
+    return {f"{prefix}.{f.name}": np.array(getattr(value, f.name), copy=True) for f in dataclasses.fields(value)
             if getattr(value, f.name) is not None}
 
 
@@ -68,7 +68,10 @@ def _records_from(prefix: str, arrays: dict[str, np.ndarray]) -> list[dict[str, 
 
 
 def tracker_state(tracker) -> tuple[dict[str, np.ndarray], dict]:
-    """``(arrays, meta)``: the tracker's state as a flat dict of arrays and a JSON-able dict."""
+    """``(arrays, meta)``: the tracker's state as a flat dict of arrays and a JSON-able dict.
+
+    Every array is a copy: the snapshot stays as it was while the tracker goes on (a writer
+    thread may save it)."""
     bank, scan, schedule = tracker.bank, tracker.scan, tracker.schedule
     scoring = scan.scoring
     arrays: dict[str, np.ndarray] = {}

@@ -75,7 +75,7 @@ def test_tracker_loaded_from_disk_continues_exactly(demo, tmp_path, config):
     original.drain()
     confirmed = set(original.bank.track_id[original.bank.status == CONFIRMED].tolist())
     path = tmp_path / "state.npz"
-    save_checkpoint(path, original)
+    save_checkpoint(path, original, extra={"frames_sent": 41})
     assert [p.name for p in tmp_path.iterdir()] == ["state.npz"]  # no temporary file left
     restored, labeler = load_checkpoint(path, demo.sensors, config)
     assert labeler is None
@@ -90,6 +90,7 @@ def test_tracker_loaded_from_disk_continues_exactly(demo, tmp_path, config):
     assert confirmed <= set(actual["track_id"].tolist())
     header, _ = read_checkpoint(path)
     assert header["confirmed_tracks"] == len(confirmed) and header["sensor_names"] == ["radar1"]
+    assert header["extra"] == {"frames_sent": 41}
 
 
 def _label_chunk(tracker: Tracker, labeler: TrackLabeler):

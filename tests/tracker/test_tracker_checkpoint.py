@@ -153,3 +153,16 @@ def test_restored_tracker_continues_exactly_on_other_sensors(scenario):
     original.finish()
     restored.finish()
     assert_same_tracks(original.drain(), restored.drain())
+
+
+def test_state_is_a_snapshot(demo):
+    """The arrays are copies: the tracker going on does not change a checkpoint being written."""
+    chunks = chunks_of(demo.plots)
+    tracker = Tracker(demo.sensors, TrackerConfig())
+    for chunk in chunks[:4]:
+        tracker.feed(chunk)
+    arrays, _ = tracker.checkpoint()
+    kept = {name: value.copy() for name, value in arrays.items()}
+    tracker.feed(chunks[4])
+    for name, value in arrays.items():
+        np.testing.assert_array_equal(value, kept[name], err_msg=name)
