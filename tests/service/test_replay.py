@@ -1,0 +1,99 @@
+"""skytrack replay (skytrack.service.replay, skytrack.service.cat048_bytes): bytes equal to the libasterix
+encoder's, datagram sizes, pacing, loops with rewritten times, the send log."""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+import numpy as np
+import pytest
+
+from skytrack.io.asterix import decode_asterix, encode_asterix
+from skytrack.service.cat048_bytes import encode_plots_cat048
+from skytrack.service.pipeline import sensor_sac_sic
+from skytrack.service.replay import (
+    Replayer, datagram_plan, load_recording, loop_shift, read_send_log, scan_blocks, shift_times,
+)
+
+
+def test_numpy_encoder_writes_the_libasterix_bytes(small_scene):
+    sensors, plots = small_scene
+    head = plots.iloc[:300].sample(frac=1.0, random_state=3)  # unsorted input: both sort by time
+    mapping = {"radar1": (12, 34)}
+    for per_block in (1, 7, 128):
+        expected = encode_asterix(head, mapping, time_of_day_at_epoch_s=43200.0, max_records_per_block=per_block)
+        data, starts, times = encode_plots_cat048(head, mapping, time_of_day_at_epoch_s=43200.0,
+                                                  max_records_per_block=per_block)
+        assert data == expected
+        assert len(starts) == -(-300 // per_block) and data[starts[-1]] == 48
+    # the plots carry Mode 3/A, Mode C and Mode S on some rows: all three optional items were exercised
+    assert head["mode_s"].notna().any() and head["mode3a"].isna().any() and head["mode_c_ft"].notna().any()
+    with pytest.raises(ValueError, match="no SAC/SIC for sensor"):
+        encode_plots_cat048(head, {"other": (1, 1)})
+
+
+def test_blocks_datagrams_and_loop_times(small_scene):
+    sensors, plots = small_scene
+    data, _, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors), max_records_per_block=20)
+    recording = scan_blocks(np.frombuffer(data, np.uint8))
+    assert recording.records == len(plots)
+    # a block's time is its newest record's: the span runs from the first block's (the 20th plot) to the last plot
+    times = np.sort(plots["time"].to_numpy())
+    assert recording.span_s == pytest.approx(times[-1] - times[19], abs=2 / 128)
+    bounds, oversize = datagram_plan(recording, 1400)
+    ends = np.append(recording.block_starts[1:], len(data))
+    sizes = [ends[bounds[k + 1] - 1] - recording.block_starts[bounds[k]] for k in range(len(bounds) - 1)]
+    assert max(sizes) <= 1400 and int(oversize) == 0 and bounds[-1] == len(recording.block_starts)
+    assert sum(sizes) == len(data)
+    # a loop pass: every time of day later by the shift (a whole number of 4 s scans past the span)
+    shift = loop_shift(recording.span_s, 4.0)
+    assert shift % 4.0 == 0 and recording.span_s < shift <= recording.span_s + 4.0
+    moved = decode_asterix(shift_times(recording, shift)).plots
+    original = decode_asterix(data).plots
+    np.testing.assert_allclose(moved["time_of_day_s"] - original["time_of_day_s"], shift)
+    np.testing.assert_array_equal(moved["range_m"], original["range_m"])
+    with pytest.raises(ValueError, match="ASTERIX data block at byte 0"):
+        scan_blocks(np.frombuffer(b"\x30\x00\x02", np.uint8))
+    with pytest.raises(ValueError, match="datagram size"):
+        datagram_plan(recording, 70000)
+
+
+def test_replay_paces_loops_and_logs(small_scene, tmp_path):
+    sensors, plots = small_scene
+    path = tmp_path / "plots.parquet"
+    plots.to_parquet(path)
+    recording = load_recording(path, sensors)
+    assert recording.records == len(plots)
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.settimeout(2.0)
+    received = []
+
+    def listen():
+        while True:
+            try:
+                received.append(receiver.recv(65536))
+            except socket.timeout:
+                return
+
+    thread = threading.Thread(target=listen)
+    thread.start()
+    # 120 s at x100 is 1.2 s a pass; two passes
+    replayer = Replayer(recording, receiver.getsockname(), speed=100.0, loop=True, loop_period_s=4.0,
+                        send_log=tmp_path / "sent.bin")
+    report = replayer.run(duration_s=2.0)
+    thread.join()
+    receiver.close()
+    assert 1.9 <= report.elapsed_s <= 3.0 and report.passes == 2
+    assert len(received) == report.datagrams and all(len(d) <= 1400 for d in received)
+    decoded = decode_asterix(b"".join(received)).plots
+    assert len(decoded["time"]) == report.records > len(plots)
+    log = read_send_log(tmp_path / "sent.bin")
+    assert len(log) == report.datagrams
+    # the wall time of sending follows the record times at x100 (within 50 ms; sleeps wake late, not early)
+    planned = log[0, 1] + (log[:, 0] - log[0, 0]) / 100.0
+    assert np.all(log[:, 1] >= planned - 0.002) and np.percentile(log[:, 1] - planned, 99) < 0.05
+    assert np.all(np.diff(log[:, 0]) >= 0)  # times go on across the loop
+    with pytest.raises(ValueError, match="give --sensors"):
+        load_recording(path)
