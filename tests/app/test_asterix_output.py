@@ -84,3 +84,62 @@ def test_tracks_ast_decodes_to_the_parquet_tracks_within_the_cat062_resolutions(
     assert (tmp_path / "tracks.ast.meta.json").exists()
     # identity events beside it stay a table
     assert asterix.identity_events_file == str(tmp_path / "tracks.identity.parquet")
+
+
+def _simulate(tmp_path, fmt: str, scenario: str = "adsb_identification", duration: str = "60"):
+    from typer.testing import CliRunner
+
+    from skytrack.cli.main import app
+
+    out = tmp_path / fmt
+    result = CliRunner().invoke(app, ["simulate", scenario, "--seed", "4", "--duration", duration, "--format", fmt,
+                                      "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def test_simulate_asterix_decodes_to_the_parquet_plots_after_quantisation(tmp_path):
+    from skytrack.io import read_adsb, read_plots
+    from skytrack.io.asterix import decode_asterix
+
+    asterix, parquet = _simulate(tmp_path, "asterix"), _simulate(tmp_path, "parquet")
+    assert sorted(p.name for p in asterix.iterdir()) == ["plots.ast", "sensors.json", "truth.parquet"]
+    sensors = read_sensors(asterix / "sensors.json")
+    radar = sensors.sensors[0]
+    pair = (radar.sac, radar.sic) if hasattr(radar, "sac") else (radar.extra["sac"], radar.extra["sic"])
+    assert pair == (0, 1) and sensors.extra["adsb_station"] == {"sac": 0, "sic": 101}
+    epoch_tod = time_of_day_at_epoch(sensors.epoch_utc)
+    decoded = decode_asterix((asterix / "plots.ast").read_bytes(), strict=True, origin=sensors.origin,
+                             sensor_names={pair: radar.name})
+
+    want = read_plots(parquet / "plots.parquet")
+    want = want.iloc[np.argsort(want["time"].to_numpy(), kind="stable")].reset_index(drop=True)
+    got = decoded.plots_frame()
+    assert len(got) == len(want) > 100 and set(got["sensor"]) == {radar.name}
+    assert np.abs(got["time"] - epoch_tod - want["time"]).max() <= 1 / 256 + 1e-9
+    assert np.abs(got["range_m"] - want["range_m"]).max() <= 1852 / 512 + 1e-9
+    azimuth_error = np.abs((got["azimuth_deg"] - want["azimuth_deg"] + 180) % 360 - 180)
+    assert azimuth_error.max() <= 360 / 2**17 + 1e-9
+    has_c = want["mode_c_ft"].notna()
+    assert (got["mode_c_ft"].notna() == has_c).all() and has_c.any()
+    assert np.abs(got["mode_c_ft"][has_c] - want["mode_c_ft"][has_c]).max() <= 12.5
+    for name in ("mode3a", "mode_s"):
+        assert [None if pd.isna(v) else v for v in got[name]] == [None if pd.isna(v) else v for v in want[name]], name
+
+    # one north marker per revolution over the simulated minute: phase + k * period
+    markers = decoded.north_marker_times()[pair] - epoch_tod
+    expected = radar.scan_phase_s + radar.scan_period_s * np.arange(np.ceil((60 - radar.scan_phase_s) / radar.scan_period_s
+                                                                            + 1e-12))
+    expected = expected[expected >= 0]
+    assert markers.size == expected.size and np.abs(markers - expected).max() <= 1 / 256 + 1e-9
+
+    # CAT021: the ADS-B reports of the Parquet run, to the items' resolutions
+    adsb_want = read_adsb(parquet / "adsb.parquet", sensors=sensors)
+    adsb_want = adsb_want.iloc[np.argsort(adsb_want["time"].to_numpy(), kind="stable")].reset_index(drop=True)
+    adsb_got = pd.DataFrame(decoded.adsb)
+    assert len(adsb_got) == len(adsb_want) > 100
+    assert np.abs(adsb_got["time"] - epoch_tod - adsb_want["time"]).max() <= 1 / 256 + 1e-9
+    for name in ("lat", "lon"):
+        assert np.abs(adsb_got[name] - adsb_want[name]).max() <= 90 / 2**30 + 1e-12, name
+    assert np.abs(adsb_got["alt_m"] - adsb_want["alt_m"]).max() <= 3.125 * 0.3048 + 1e-9
+    assert list(adsb_got["icao24"]) == list(adsb_want["icao24"])

@@ -19,6 +19,9 @@ if TYPE_CHECKING:
     from skytrack.sim import SimulationResult
 
 TABLE_FORMATS = ("parquet", "csv")
+#: what ``skytrack simulate --format`` writes: the table formats, or ``asterix`` (plots.ast: CAT048 plots,
+#: CAT034 north markers and CAT021 ADS-B reports; truth.parquet; sensors.json with SAC/SIC; issue 11 item 2)
+SIMULATION_FORMATS = (*TABLE_FORMATS, "asterix")
 
 
 def _recorded_overrides(trajectories: str | Path | None, start: str | float | None) -> dict:
@@ -96,14 +99,17 @@ def run_simulation(
     return result
 
 
-def write_simulation(result: SimulationResult, out: str | Path, fmt: str = "parquet") -> dict[str, Path]:
+def write_simulation(result: SimulationResult, out: str | Path, fmt: str = "parquet", *,
+                     progress: ProgressCallback | None = None) -> dict[str, Path]:
     """Write ``plots.<fmt>``, ``truth.<fmt>`` and ``sensors.json`` into ``out`` (and
     ``adsb.<fmt>`` when the result has ADS-B reports: an ``adsb`` section, or recorded
-    traffic); returns their paths."""
+    traffic); returns their paths.  ``fmt="asterix"`` writes :func:`write_asterix_simulation`'s files."""
     from skytrack.io import write_adsb, write_plots, write_sensors, write_truth
 
+    if fmt == "asterix":
+        return write_asterix_simulation(result, out, progress=progress)
     if fmt not in TABLE_FORMATS:
-        raise ValueError(f"table format must be parquet or csv, got {fmt!r}")
+        raise ValueError(f"format must be parquet, csv or asterix, got {fmt!r}")
     out = Path(out)
     paths = {
         "plots": write_plots(result.plots, out / f"plots.{fmt}", sensors=result.sensors),
@@ -113,3 +119,35 @@ def write_simulation(result: SimulationResult, out: str | Path, fmt: str = "parq
     if result.adsb is not None:
         paths["adsb"] = write_adsb(result.adsb, out / f"adsb.{fmt}", origin=result.sensors.origin)
     return paths
+
+
+def write_asterix_simulation(result: SimulationResult, out: str | Path, *,
+                             progress: ProgressCallback | None = None) -> dict[str, Path]:
+    """Write ``plots.ast`` (CAT034 north markers, one per revolution of every rotating radar over
+    the simulated span, CAT048 plots, CAT021 ADS-B reports when the result has them, in time
+    order), ``truth.parquet`` and ``sensors.json`` with every sensor's ``sac``/``sic`` (assigned
+    in sensor order when the scenario gives none) and, with ADS-B, ``adsb_station``.
+
+    Not representable in CAT048 and not written: ``elevation_deg``, ``range_rate_mps``, ``iff``,
+    ``scan``, ``truth_id`` and an airborne radar's platform columns; the ADS-B reports' ``truth_id``."""
+    from skytrack.io import write_sensors, write_truth
+    from skytrack.io.asterix.cat062 import time_of_day_at_epoch
+    from skytrack.io.asterix.recording import adsb_station, encode_recording, north_markers, with_sac_sic
+
+    report = progress or (lambda stage, completed, total: None)
+    out = Path(out)
+    has_adsb = result.adsb is not None and len(result.adsb) > 0
+    sensors, sac_sic = with_sac_sic(result.sensors, adsb=has_adsb)
+    end = max([float(result.scenario.duration_s)] + [float(t["time"].max()) for t in (result.plots, result.adsb)
+                                                     if t is not None and len(t)])
+    markers = north_markers(sensors, 0.0, end)
+    report("write", 0.0, 1.0)
+    data = encode_recording(result.plots, sac_sic, service=markers, adsb=result.adsb if has_adsb else None,
+                            adsb_sac_sic=adsb_station(sensors), origin=sensors.origin,
+                            time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
+                            progress=lambda fraction: report("write", fraction, 1.0))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "plots.ast").write_bytes(data)
+    report("write", 1.0, 1.0)
+    return {"plots": out / "plots.ast", "truth": write_truth(result.truth, out / "truth.parquet"),
+            "sensors": write_sensors(sensors, out / "sensors.json")}

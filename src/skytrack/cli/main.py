@@ -125,13 +125,13 @@ def simulate(
     start: Annotated[Optional[str], typer.Option("--start", help="Time 0 on the recording: ISO-8601 UTC (2018-08-01T11:20:00Z) or seconds after its first time stamp.")] = None,
     duration: Annotated[Optional[float], typer.Option("--duration", help="Simulated time span (s), replacing the scenario's duration_s.")] = None,
     seed: Annotated[Optional[int], typer.Option(help="Seed of the measurement noise (default: the scenario's).")] = None,
-    fmt: Annotated[str, typer.Option("--format", help="Table format: parquet or csv.")] = "parquet",
+    fmt: Annotated[str, typer.Option("--format", help="parquet or csv tables, or asterix: plots.ast (CAT048 plots, CAT034 north markers, CAT021 ADS-B), truth.parquet, sensors.json with SAC/SIC.")] = "parquet",
 ) -> None:
     """Simulate a scenario and write plots, truth and sensors.json (FORMATS.md); a scenario with an adsb section or recorded traffic also gives ADS-B reports."""
-    from skytrack.app.simulate import TABLE_FORMATS, run_simulation, write_simulation
+    from skytrack.app.simulate import SIMULATION_FORMATS, run_simulation, write_simulation
 
-    if fmt not in TABLE_FORMATS:
-        _fail(f"--format must be parquet or csv, got {fmt!r}")
+    if fmt not in SIMULATION_FORMATS:
+        _fail(f"--format must be parquet, csv or asterix, got {fmt!r}")
     if (scenario is None) == (scenario_option is None):
         _fail("give the scenario once: as the argument or as --scenario")
     if duration is not None and not duration > 0.0:
@@ -139,7 +139,7 @@ def simulate(
     with _progress() as progress:
         result = run_simulation(scenario or scenario_option, seed, progress=progress, trajectories=trajectories,
                                 start=start, duration=duration)
-    paths = write_simulation(result, out, fmt)
+        paths = write_simulation(result, out, fmt, progress=progress)
     _print_simulation_summary(result, paths)
 
 

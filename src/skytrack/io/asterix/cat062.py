@@ -92,7 +92,7 @@ def _floats(tracks: pd.DataFrame, name: str) -> np.ndarray:
     return pd.to_numeric(tracks[name], errors="coerce").to_numpy(float, na_value=np.nan)
 
 
-def _texts(tracks: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
+def distinct_texts(tracks: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Distinct texts and each row's index into them (-1: null)."""
     if name not in tracks.columns:
         return np.empty(0, object), np.full(len(tracks), -1)
@@ -124,7 +124,8 @@ def _saturated(std: np.ndarray, lsb: float, bits: int, present: np.ndarray) -> n
     return raw
 
 
-def _parsed(distinct: np.ndarray, index: np.ndarray, parse, column: str) -> np.ndarray:
+def codes_of_texts(distinct: np.ndarray, index: np.ndarray, parse, column: str, what: str = "tracks to CAT062"
+                   ) -> np.ndarray:
     """``parse`` of every distinct text (few aircraft), spread to the rows; the first bad row is named."""
     codes = np.zeros(distinct.size, np.int64)
     for k, text in enumerate(distinct):
@@ -132,17 +133,17 @@ def _parsed(distinct: np.ndarray, index: np.ndarray, parse, column: str) -> np.n
             codes[k] = parse(text)
         except ValueError:
             row = int(np.flatnonzero(index == k)[0])
-            raise ValueError(f"tracks to CAT062: row {row}, column {column}: {text!r} cannot be written") from None
+            raise ValueError(f"{what}: row {row}, column {column}: {text!r} cannot be written") from None
     return np.where(index >= 0, codes[np.maximum(index, 0)] if codes.size else 0, 0)
 
 
-def _mode3a(text: str) -> int:
+def mode3a_code(text: str) -> int:
     if len(text) != 4 or any(c not in "01234567" for c in text):
         raise ValueError(text)
     return int(text, 8)
 
 
-def _icao24(text: str) -> int:
+def icao24_code(text: str) -> int:
     if len(text) != 6:
         raise ValueError(text)
     return int(text, 16)
@@ -190,12 +191,12 @@ def quantise_tracks(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_
     raw["x"], raw["y"] = (_quantise(v, XY_LSB_M, 24, True, everywhere, c) for v, c in ((x, "x"), (y, "y")))
     raw["has_185"] = np.isfinite(vx) & np.isfinite(vy)
     raw["vx"], raw["vy"] = (_quantise(v, V_LSB_MPS, 16, True, raw["has_185"], c) for v, c in ((vx, "vx"), (vy, "vy")))
-    distinct, index = _texts(tracks, "mode3a")
-    raw["has_060"], raw["mode3a"] = index >= 0, _parsed(distinct, index, _mode3a, "mode3a")
-    distinct, index = _texts(tracks, "icao24")
-    raw["has_adr"], raw["address"] = index >= 0, _parsed(distinct, index, _icao24, "icao24")
-    distinct, index = _texts(tracks, "callsign")
-    raw["has_id"], raw["callsign"] = index >= 0, _parsed(distinct, index, _callsign, "callsign")
+    distinct, index = distinct_texts(tracks, "mode3a")
+    raw["has_060"], raw["mode3a"] = index >= 0, codes_of_texts(distinct, index, mode3a_code, "mode3a")
+    distinct, index = distinct_texts(tracks, "icao24")
+    raw["has_adr"], raw["address"] = index >= 0, codes_of_texts(distinct, index, icao24_code, "icao24")
+    distinct, index = distinct_texts(tracks, "callsign")
+    raw["has_id"], raw["callsign"] = index >= 0, codes_of_texts(distinct, index, _callsign, "callsign")
     raw["track_number"] = track_id & 0xFFFF
     geometric = np.isfinite(z) & np.isfinite(alt)
     raw["has_130"], raw["has_136"] = geometric, ~np.isfinite(z) & np.isfinite(alt)
@@ -223,7 +224,7 @@ def quantise_tracks(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_
     return raw
 
 
-def _big_endian(values: np.ndarray, n_bytes: int) -> np.ndarray:
+def big_endian(values: np.ndarray, n_bytes: int) -> np.ndarray:
     """(rows, n_bytes) uint8, most significant byte first."""
     shifts = 8 * np.arange(n_bytes - 1, -1, -1)
     return ((np.asarray(values, np.int64)[:, None] >> shifts) & 0xFF).astype(np.uint8)
@@ -240,46 +241,49 @@ def _item_columns(raw: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, lis
     primary_500 = ((raw["has_apc"].astype(np.int64) << 7) | (raw["has_aga"].astype(np.int64) << 4)
                    | (raw["has_atv"].astype(np.int64) << 2))
     parts = {
-        "010": [(always, _big_endian((raw["sac"] << 8) | raw["sic"], 2))],
-        "015": [(always, _big_endian(raw["service_id"], 1))],
-        "070": [(always, _big_endian(raw["time_of_day"], 3))],
-        "105": [(always, _big_endian((raw["lat"] << 32) | raw["lon"], 8))],
-        "100": [(always, _big_endian((raw["x"] << 24) | raw["y"], 6))],
-        "185": [(always, _big_endian((raw["vx"] << 16) | raw["vy"], 4))],
-        "060": [(always, _big_endian(raw["mode3a"], 2))],
-        "380": [(always, _big_endian(primary_380, 1)), (raw["has_adr"], _big_endian(raw["address"], 3)),
-                (raw["has_id"], _big_endian(raw["callsign"], 6))],
-        "040": [(always, _big_endian(raw["track_number"], 2))],
-        "080": [(always, _big_endian(raw["status"], 4))],
-        "136": [(always, _big_endian(raw["flight_level"], 2))],
-        "130": [(always, _big_endian(raw["altitude"], 2))],
-        "220": [(always, _big_endian(raw["climb"], 2))],
-        "500": [(always, _big_endian(primary_500, 1)), (raw["has_apc"], _big_endian((raw["apc_x"] << 16) | raw["apc_y"], 4)),
-                (raw["has_aga"], _big_endian(raw["aga"], 1)),
-                (raw["has_atv"], _big_endian((raw["atv_x"] << 8) | raw["atv_y"], 2))],
+        "010": [(always, big_endian((raw["sac"] << 8) | raw["sic"], 2))],
+        "015": [(always, big_endian(raw["service_id"], 1))],
+        "070": [(always, big_endian(raw["time_of_day"], 3))],
+        "105": [(always, big_endian((raw["lat"] << 32) | raw["lon"], 8))],
+        "100": [(always, big_endian((raw["x"] << 24) | raw["y"], 6))],
+        "185": [(always, big_endian((raw["vx"] << 16) | raw["vy"], 4))],
+        "060": [(always, big_endian(raw["mode3a"], 2))],
+        "380": [(always, big_endian(primary_380, 1)), (raw["has_adr"], big_endian(raw["address"], 3)),
+                (raw["has_id"], big_endian(raw["callsign"], 6))],
+        "040": [(always, big_endian(raw["track_number"], 2))],
+        "080": [(always, big_endian(raw["status"], 4))],
+        "136": [(always, big_endian(raw["flight_level"], 2))],
+        "130": [(always, big_endian(raw["altitude"], 2))],
+        "220": [(always, big_endian(raw["climb"], 2))],
+        "500": [(always, big_endian(primary_500, 1)), (raw["has_apc"], big_endian((raw["apc_x"] << 16) | raw["apc_y"], 4)),
+                (raw["has_aga"], big_endian(raw["aga"], 1)),
+                (raw["has_atv"], big_endian((raw["atv_x"] << 8) | raw["atv_y"], 2))],
     }
     presence = {"105": raw["has_105"], "185": raw["has_185"], "060": raw["has_060"], "380": has_380,
                 "136": raw["has_136"], "130": raw["has_130"], "220": raw["has_220"], "500": has_500}
     return [(frn, presence.get(item, always), parts[item]) for item, frn, _ in _ITEMS]
 
 
-def record_bytes(raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """All records back to back (uint8) and each record's start offset (one more: the end)."""
-    columns = _item_columns(raw)
-    n = raw["x"].size
-    fspec_bits = np.zeros(n, np.int64)  # FRN index k at bit 34 - k (5 octets of 7 bits)
+def assemble_records(n: int, columns: list[tuple[int, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]]
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Records of any category assembled with numpy: ``columns`` lists, in UAP order, each item's
+    FRN index (from 0), presence per row and parts ``(present, bytes (rows, k))``.  Returns all
+    records back to back (uint8) and each record's start offset (one more: the end)."""
+    n_octets = max(frn for frn, _, _ in columns) // 7 + 1
+    top = 7 * n_octets - 1
+    fspec_bits = np.zeros(n, np.int64)  # FRN index k at bit top - k (octets of 7 bits)
     for frn, present, _ in columns:
-        fspec_bits |= present.astype(np.int64) << (34 - frn)
-    octets = np.stack([(fspec_bits >> (28 - 7 * k)) & 0x7F for k in range(5)], axis=1)
-    fspec_len = np.where(octets.any(axis=1), 5 - np.argmax(octets[:, ::-1] != 0, axis=1), 1)
-    fspec = (octets << 1) | (np.arange(5)[None, :] < fspec_len[:, None] - 1)  # FX on all but the last octet
+        fspec_bits |= present.astype(np.int64) << (top - frn)
+    octets = np.stack([(fspec_bits >> (top - 6 - 7 * k)) & 0x7F for k in range(n_octets)], axis=1)
+    fspec_len = np.where(octets.any(axis=1), n_octets - np.argmax(octets[:, ::-1] != 0, axis=1), 1)
+    fspec = (octets << 1) | (np.arange(n_octets)[None, :] < fspec_len[:, None] - 1)  # FX on all but the last octet
     lengths = fspec_len.copy()
     for _, present, parts in columns:
         for part_present, data in parts:
             lengths += np.where(present & part_present, data.shape[1], 0)
-    starts = np.concatenate([[0], np.cumsum(lengths)])
+    starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     out = np.zeros(int(starts[-1]), np.uint8)
-    for k in range(5):
+    for k in range(n_octets):
         used = k < fspec_len
         out[starts[:-1][used] + k] = fspec[used, k]
     cursor = starts[:-1] + fspec_len
@@ -293,20 +297,29 @@ def record_bytes(raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return out, starts
 
 
+def record_bytes(raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """All CAT062 records back to back (uint8) and each record's start offset (one more: the end)."""
+    return assemble_records(raw["x"].size, _item_columns(raw))
+
+
 def blocks_from_records(records: np.ndarray, starts: np.ndarray, max_records_per_block: int = MAX_RECORDS_PER_BLOCK,
-                        category: int = CATEGORY) -> bytes:
-    """Data blocks of at most ``max_records_per_block`` records (CAT, LEN, records) with numpy."""
+                        category: int | np.ndarray = CATEGORY) -> bytes:
+    """Data blocks (CAT, LEN, records) with numpy: a new block when the category (per record,
+    or one for all) changes or after ``max_records_per_block`` records of one category."""
     n = starts.size - 1
     if n == 0:
         return b""
-    first = np.arange(0, n, max_records_per_block)
-    ends = np.minimum(first + max_records_per_block, n)
+    categories = np.broadcast_to(np.asarray(category, np.int64), (n,))
+    new_run = np.concatenate([[True], categories[1:] != categories[:-1]])
+    run_start = np.maximum.accumulate(np.where(new_run, np.arange(n), 0))
+    first = np.flatnonzero(new_run | ((np.arange(n) - run_start) % max_records_per_block == 0))
+    ends = np.append(first[1:], n)
     sizes = 3 + starts[ends] - starts[first]
     if (sizes > 65535).any():
-        raise ValueError("CAT062: a data block would exceed 65 535 bytes; lower max_records_per_block")
+        raise ValueError("ASTERIX: a data block would exceed 65 535 bytes; lower max_records_per_block")
     out = np.empty(int(records.size + 3 * first.size), np.uint8)
     header_at = starts[first] + 3 * np.arange(first.size)
-    out[header_at] = category
+    out[header_at] = categories[first]
     out[header_at + 1] = sizes >> 8
     out[header_at + 2] = sizes & 0xFF
     block_of_byte = np.searchsorted(starts[first], np.arange(records.size), side="right") - 1
