@@ -104,15 +104,16 @@ def default_workers() -> int:
 
 @contextlib.contextmanager
 def make_executor(workers: int | None = None, scheduler: str | None = None,
-                  timeout_s: float = SCHEDULER_TIMEOUT_S) -> Iterator[cf.Executor | None]:
+                  timeout_s: float | None = None) -> Iterator[cf.Executor | None]:
     """The executor of ``--workers``/``--scheduler``, shut down on exit.
 
     ``scheduler`` (a Dask scheduler address such as ``tcp://127.0.0.1:8786``) wins over
     ``workers``; else ``workers == 1`` gives ``None`` (in-process) and any other count (``None``:
-    :func:`default_workers`) a process pool of that many workers.
+    :func:`default_workers`) a process pool of that many workers.  ``timeout_s`` (default
+    :data:`SCHEDULER_TIMEOUT_S`) bounds the wait for the scheduler.
     """
     if scheduler:
-        with _dask_executor(scheduler, timeout_s) as executor:
+        with _dask_executor(scheduler, SCHEDULER_TIMEOUT_S if timeout_s is None else timeout_s) as executor:
             yield executor
         return
     if workers is not None and workers < 1:
