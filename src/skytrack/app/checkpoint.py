@@ -7,7 +7,8 @@ last checkpoint").
 filter state, bank column, clutter map, learned code counts, the open windows' plots, the output
 clock...: :mod:`skytrack.tracker.state`) and, when given, the state of the
 :class:`~skytrack.app.identification.TrackLabeler` (its identification pairs and their sequential
-test sums), plus a JSON header: the format version, the tracker configuration, the sensors'
+test sums; :mod:`skytrack.app.labeler_state`, no pickle: the file is read with
+``allow_pickle=False``), plus a JSON header: the format version, the tracker configuration, the sensors'
 names and a SHA-256 of the sensors description (epoch, origin and sensors of sensors.json), the
 save time and the number of tracks.  The file is written to a temporary file in the same
 directory, flushed to disk (fsync) and renamed over the old checkpoint (``os.replace``), so a
@@ -169,7 +170,7 @@ def load_checkpoint(path, sensors, config=None):
                           if name.startswith("labeler.")}
         try:
             labeler = TrackLabeler.restore(labeler_arrays)
-        except Exception as exc:  # an unpickling error of any kind means the labelling state is damaged
+        except (KeyError, ValueError, TypeError, IndexError, UnicodeDecodeError) as exc:
             raise CheckpointError(f"{path}: damaged checkpoint: the ADS-B labelling state does not load "
                                   f"({type(exc).__name__}: {exc})") from None
     return tracker, labeler

@@ -348,22 +348,24 @@ class TrackLabeler:
 
     # ------------------------------------------------------------------ checkpoints
     def state(self) -> dict[str, np.ndarray]:
-        """The whole labelling state (the other system's reports and how far they were taken, the
-        identifier's tracks, pairs and their sequential test sums, labels held, statistics) for a
-        checkpoint (issue 11 item 3): one byte array, the pickled attributes.  The identifier's
-        state is a graph of Python objects and arrays; a pickle keeps it exactly, so a checkpoint
-        must only be loaded from a directory no one else writes to."""
-        import pickle
+        """The whole labelling state for a checkpoint (issue 11 item 3) as a flat dict of arrays:
+        the identifier's tracks and pairs (joint filters, sequential test statistics), the other
+        system's reports and how far they were taken, the labels held, the statistics
+        (:mod:`skytrack.app.labeler_state`; no pickle)."""
+        from skytrack.app.labeler_state import labeler_state
 
-        return {"pickle": np.frombuffer(pickle.dumps(self.__dict__, protocol=pickle.HIGHEST_PROTOCOL), np.uint8)}
+        return labeler_state(self)
 
     @classmethod
     def restore(cls, state: dict[str, np.ndarray]) -> "TrackLabeler":
         """The labeller :meth:`state` saved: labelling the same track rows afterwards gives the same labels."""
-        import pickle
+        from skytrack.app.labeler_state import read_labeler_state, restore_identifier
 
-        labeler = cls.__new__(cls)
-        labeler.__dict__.update(pickle.loads(np.asarray(state["pickle"], np.uint8).tobytes()))
+        config, other, rest, identifier = read_labeler_state(state)
+        labeler = cls(OtherSystem(**other), float(rest["covered_area_m2"]), AdsbIdentificationConfig(**config))
+        for name, value in rest.items():
+            setattr(labeler, name, LabelStats(**value) if name == "stats" else value)
+        restore_identifier(labeler.identifier, identifier, state)
         return labeler
 
     def pairs_table(self) -> pd.DataFrame:
