@@ -110,6 +110,7 @@ def test_adsb_labelling_is_restored_with_its_pairs(demo, tmp_path):
         original.feed(chunk)
         _label_chunk(original, labeler)
     assert labeler.stats.labelled_rows > 500  # pairs exist and label tracks at the checkpoint
+    assert all(value.dtype != object for value in labeler.state().values())  # plain arrays, nothing pickled
     path = tmp_path / "state.npz"
     save_checkpoint(path, original, labeler)
     restored, restored_labeler = load_checkpoint(path, demo.sensors, TrackerConfig())
