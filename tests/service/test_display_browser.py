@@ -93,6 +93,8 @@ def test_display_draws_moving_tracks_labels_details_and_basemap():
         assert f"2021-10-07 12:00:{2 * (N_FRAMES - 1):02d} UTC" in status_bar
         assert f"{N_TRACKS} tracks" in status_bar and "connected" in status_bar
         assert "Natural Earth" in page.inner_text("#attribution")
+        licences = page.evaluate("fetch(document.querySelector('#attribution a').href).then(r => r.text())")
+        assert "Natural Earth" in licences and "topojson-client" in licences
 
         # screenshot: each class's colour at its track's projected position, the coastline, the radar
         image = Image.open(io.BytesIO(page.screenshot())).convert("RGB")
@@ -210,7 +212,7 @@ def test_static_bundle_is_complete():
     referenced = [name for name in assets if name in index]
     assert any(name.endswith(".js") for name in referenced) and any(name.endswith(".css") for name in referenced)
     assert any(name.startswith("countries-50m") and name.endswith(".json") for name in assets)
-    licences = (STATIC_DIR / "THIRD_PARTY_LICENSES.txt").read_text()
+    licences = (STATIC_DIR / "assets" / "THIRD_PARTY_LICENSES.txt").read_text()
     for name in ("Natural Earth", "world-atlas", "topojson-client", "ISC"):
         assert name in licences
     # package-data covers static/* and static/assets/* only: nothing deeper
