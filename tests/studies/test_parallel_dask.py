@@ -102,3 +102,23 @@ def test_singer_cli_with_scheduler_writes_the_csv_of_the_process_pool(tmp_path, 
         assert result.exit_code == 0, result.output
         outputs.append((tmp_path / name / singer.CSV_NAME).read_bytes())
     assert outputs[0] == outputs[1]
+
+
+def test_track_files_on_dask_writes_the_tracks_of_the_in_process_replay(tmp_path, scheduler):
+    """Multi-file replay: two plots files tracked on the cluster give the in-process tracks, file by file."""
+    import shutil
+
+    from skytrack.app.simulate import run_simulation, write_simulation
+    from skytrack.app.track_files import track_files
+    from skytrack.io import read_tracks
+
+    files = []
+    for seed in (5, 6):
+        paths = write_simulation(run_simulation("crossing", seed=seed), tmp_path / f"s{seed}", "parquet")
+        files.append(shutil.copy(paths["plots"], tmp_path / f"day{seed}.parquet"))
+    here = track_files(files, paths["sensors"], tmp_path / "here")
+    with make_executor(scheduler=scheduler) as dask:
+        there = track_files(files, paths["sensors"], tmp_path / "dask", executor=dask)
+    for a, b in zip(here, there):
+        assert a.track_rows == b.track_rows > 0 and a.stats == b.stats
+        pd.testing.assert_frame_equal(read_tracks(b.tracks_file), read_tracks(a.tracks_file), check_exact=True)

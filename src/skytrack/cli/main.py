@@ -29,6 +29,7 @@ from skytrack.cli.identify import identify_app
 from skytrack.cli.observability import observability_app
 from skytrack.cli.serve import register_serve
 from skytrack.cli.study import study_app
+from skytrack.cli.track_many import register_track_many
 
 app = typer.Typer(
     name="skytrack",
@@ -41,6 +42,7 @@ app.add_typer(study_app, name="study")
 app.add_typer(identify_app, name="identify")
 app.add_typer(observability_app, name="observability")
 register_serve(app)
+register_track_many(app)  # issue 11 item 6: skytrack track-many FILES... [--workers N | --scheduler ADDRESS]
 
 console = Console()
 error_console = Console(stderr=True)

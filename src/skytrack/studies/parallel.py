@@ -149,9 +149,9 @@ def _dask_executor(scheduler: str, timeout_s: float) -> Iterator[cf.Executor]:
 def describe_executor(workers: int | None, scheduler: str | None) -> str:
     """A short text for the CLI: where the tasks run."""
     if scheduler:
-        return f"Dask scheduler {scheduler}"
+        return f"on the Dask scheduler {scheduler}"
     count = default_workers() if workers is None else workers
-    return "in process" if count == 1 else f"{count} worker processes"
+    return "in process" if count == 1 else f"on {count} worker processes"
 
 
 def spawn_seeds(seed: int, count: int) -> Sequence:
