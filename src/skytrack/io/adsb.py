@@ -58,6 +58,7 @@ from skytrack.io.checks import (
     require_columns,
     time_column,
 )
+from skytrack.io.asterix.reading import is_asterix_input, read_asterix_adsb
 from skytrack.io.csv_text import open_text
 from skytrack.io.errors import InputError, InputWarning, ReadReport
 from skytrack.io.frames import enu_from_geodetic, local_to_origin_velocity
@@ -267,9 +268,15 @@ def read_adsb(path, *, sensors=None, origin=None, epoch_utc=None, lenient=False,
     path = Path(path)
     origin, epoch = frame_defaults(sensors, origin, epoch_utc)
     report = ReadReport(file=str(path))
-    header = _header(path)
+    header = None if is_asterix_input(path) else _header(path)
     layout = "state vectors" if header is None else adsb_layout(header)
-    if header is None or layout != "adsb":
+    if is_asterix_input(path):  # CAT021 reports (skytrack.io.asterix.reading), checked as a table
+        layout = "asterix"
+        df = read_asterix_adsb(path, origin=origin, epoch_utc=None if epoch is None else epoch.isoformat(),
+                               lenient=lenient, report=report)
+        report.rows_read += len(df)
+        adsb = _validate_adsb(df, TableSource.for_frame(f"{path} (CAT021 reports)"), origin, epoch, lenient, report)
+    elif header is None or layout != "adsb":
         adsb = _state_vector_reports(path, header, origin, epoch, altitude, lenient, report)
         layout = adsb.attrs["layout"]
     else:

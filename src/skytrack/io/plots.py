@@ -40,6 +40,7 @@ from skytrack.io.checks import (
     time_column,
 )
 from skytrack.io.errors import InputError, ReadReport
+from skytrack.io.asterix.reading import is_asterix_input
 from skytrack.io.plot_arrays import MODE_C_RANGE_FT, PlotStream, plot_batch_from_arrow
 from skytrack.io.plot_repeats import RepeatedRows
 from skytrack.io.time_units import BeamRateCheck
@@ -230,7 +231,9 @@ def read_plots(
 
 
 def read_plots(path, sensors=None, lenient=False, *, epoch_utc=None):
-    """Read and validate a plots table (.parquet/.pq/.csv/.csv.gz).
+    """Read and validate a plots table (.parquet/.pq/.csv/.csv.gz), or the CAT048 plots of an
+    ASTERIX recording (.ast/.asterix/.pcap; needs ``sensors`` with sac/sic, see
+    :mod:`skytrack.io.asterix.reading`).
 
     Returns the plots DataFrame (FORMATS.md columns first, extras after); with
     ``lenient=True`` returns ``(plots, report)`` where bad rows were skipped and counted.
@@ -238,8 +241,11 @@ def read_plots(path, sensors=None, lenient=False, *, epoch_utc=None):
     report warnings (e.g. no epoch for timestamps) through :mod:`warnings`.
     """
     report = ReadReport(file=str(path))
-    df, source = load_table(path, lenient=lenient, report=report)
-    plots = _validate_plots(df, source, sensors, epoch_utc, lenient, report)
+    if is_asterix_input(path):
+        plots = _asterix_plots(path, sensors, lenient, report)
+    else:
+        df, source = load_table(path, lenient=lenient, report=report)
+        plots = _validate_plots(df, source, sensors, epoch_utc, lenient, report)
     repeated = RepeatedRows()
     repeated.add_frame(plots, 0)
     if repeated.message():
@@ -284,6 +290,9 @@ def iter_plot_batches(path, sensors: SensorSet, lenient=False, *, chunk_rows=1_0
     names = sensors.names
     is_3d = [s.is_3d for s in sensors.sensors]
     first_row = 0
+    if is_asterix_input(path):
+        yield from _asterix_batches(path, sensors, lenient, chunk_rows, report)
+        return
     for chunk in _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, as_batches=True,
                                  stop_on_units=not units_confirmed):
         if isinstance(chunk, PlotBatch):
@@ -348,6 +357,34 @@ def _checked_chunks(path, sensors, lenient, chunk_rows, epoch_utc, report, *, as
     if repeated.message():
         report.warn(repeated.message())
     emit_warnings(report, lenient)
+
+
+def _asterix_plots(path, sensors: SensorSet | None, lenient: bool, report: ReadReport) -> pd.DataFrame:
+    """The CAT048 plots of an ASTERIX recording, validated like a table's rows (numbered in time
+    order; ``byte_offset`` locates each record in the file)."""
+    from skytrack.io.asterix.reading import read_asterix_input
+
+    if sensors is None:
+        raise InputError("ASTERIX plots need sensors.json: its sensors' sac/sic name the sources", file=str(path))
+    decoded = read_asterix_input(path, sensors, lenient=lenient, report=report)
+    skipped_before = sum(entry.count for entry in report.skipped.values())
+    report.rows_read += len(decoded.plots) + skipped_before
+    source = TableSource.for_frame(f"{path} (CAT048 plots in time order)")
+    plots = _validate_plots(decoded.plots, source, sensors, None, lenient, report)
+    report.rows_kept = len(plots)
+    return plots
+
+
+def _asterix_batches(path, sensors: SensorSet, lenient: bool, chunk_rows: int, report: ReadReport | None):
+    if chunk_rows < 1:
+        raise ValueError(f"chunk_rows must be at least 1, got {chunk_rows}")
+    report = report if report is not None else ReadReport(file=str(path))
+    plots = _asterix_plots(path, sensors, lenient, report)
+    emit_warnings(report, lenient)
+    for start in range(0, len(plots), chunk_rows):
+        chunk = plots.iloc[start:start + chunk_rows]
+        yield PlotBatch.from_frame(chunk, sensors.names, [s.is_3d for s in sensors.sensors], str(path),
+                                   first_row=start, check=False)
 
 
 def write_plots(df: pd.DataFrame, path: str | Path, *, sensors: SensorSet | None = None) -> Path:

@@ -311,9 +311,9 @@ def chunk_to_frame(table: pa.Table | pa.RecordBatch, source: TableSource) -> pd.
 
 
 def count_rows(path: str | Path) -> int | None:
-    """Rows of a Parquet file from its metadata (None for other formats)."""
+    """Rows of a Parquet file from its metadata (None for other formats, ASTERIX recordings too)."""
     path = Path(path)
-    if table_format(path) != "parquet":
+    if path.name.lower().endswith((".ast", ".asterix", ".pcap")) or table_format(path) != "parquet":
         return None
     _check_exists(path)
     try:

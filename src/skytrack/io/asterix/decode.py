@@ -196,6 +196,7 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
         "detection_type": np.where(typ_at >= 0, _unsigned(buf, typ_at, 1) >> 5, -1),
         "mode3a_code": np.where(mode3a_at >= 0, mode3a_code, -1),
         "mode_s_address": np.where(address_at >= 0, address, -1),
+        "byte_offset": start[is_plot],
     }
     s = items[is_service]
     azimuth_at = s[:, ITEMS_READ[34].index("020")]
@@ -207,7 +208,9 @@ def decode_asterix(data: bytes | bytearray | memoryview | np.ndarray, *, strict:
         "sac": sac[is_service],
         "sic": sic[is_service],
         "time_of_day_s": time_of_day[is_service],
+        "byte_offset": start[is_service],
     }
     report = DecodeProblems(problems=problems, blocks=n_blocks, records=int(cat.size))
     adsb["sensor"] = names[is_adsb]
+    adsb["byte_offset"] = start[is_adsb]
     return DecodedAsterix(plots=plots, service=service, problems=report, adsb=adsb)
