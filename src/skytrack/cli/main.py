@@ -205,7 +205,7 @@ def _association_options(config, rule: str | None, mode: str | None, missing_iff
 @reports_input_errors
 def track(
     ctx: typer.Context,
-    plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv), FORMATS.md layout.")],
+    plots: Annotated[Path, typer.Argument(help="Plots table (.parquet or .csv, FORMATS.md layout) or an ASTERIX recording (.ast, .pcap: CAT048 plots, CAT034 north markers; sensors by sac/sic).")],
     sensors: Annotated[Path, typer.Option("--sensors", help="sensors.json describing the radars.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Tracks table to write (.parquet or .csv; .ast: ASTERIX CAT062 system tracks).")],
     model: Annotated[str, typer.Option(help="Motion model: cv or singer.")] = defaults.MODEL,
@@ -237,7 +237,7 @@ def track(
     range_rate_positive_closing: Annotated[bool, typer.Option("--range-rate-positive-closing", help="The plots' range_rate_mps is positive for closing targets; negate it into skytrack's convention (dD/dt, positive opening).")] = False,
     units_confirmed: Annotated[bool, typer.Option("--units-confirmed", help="Track plots whose values look like km or radians as metres and degrees all the same.")] = False,
     config_file: Annotated[Optional[Path], typer.Option("--config", help="Tracker configuration (YAML or JSON, one section per component; see docs/design.md). Options given on the command line override it.")] = None,
-    adsb: Annotated[Optional[Path], typer.Option("--adsb", help="ADS-B reports (FORMATS.md adsb, OpenSky or traffic state vectors): label tracks with the icao24 and callsign that spec 001's sequential test identifies for them.")] = None,
+    adsb: Annotated[Optional[Path], typer.Option("--adsb", help="ADS-B reports (FORMATS.md adsb, OpenSky or traffic state vectors, or the CAT021 reports of an .ast / .pcap recording): label tracks with the icao24 and callsign that spec 001's sequential test identifies for them.")] = None,
     adsb_fuse: Annotated[bool, typer.Option("--adsb-fuse", help="With --adsb: rows of identified tracks carry the radar/ADS-B fused state (the pair's joint filter, spec 001 R14).")] = False,
     only_sensor: Annotated[Optional[list[str]], typer.Option("--sensor", help="Track the plots of this sensor only (repeat for several); the other sensors' plots are read and checked, not tracked.")] = None,
     reports: Annotated[bool, typer.Option("--reports", help="Also write NAME.reports.parquet: the plots every confirmed track took (position and covariance in the common frame), for `skytrack identify tracks` between two radars.")] = False,
