@@ -147,21 +147,27 @@ export class Renderer {
     // trails: 2x2 pixel dots, fading with age
     pixels.fill(0);
     const tNow = store.tS;
-    const fadeScale = (FADE_LEVELS - 1) / store.trailS;
+    const { trailX, trailY, trailT, trailS } = store;
+    const fadeScale = (FADE_LEVELS - 1) / trailS; // age <= trailS gives a level <= FADE_LEVELS - 1
+    const lastX = width - 1;
+    const lastY = height - 1;
     for (let i = 0; i < n; i++) {
       const slot = active[i];
       const colours = this.trailColours[classes[i]];
       const base = slot * TRAIL_POINTS;
       const count = store.trailCount[slot];
-      const head = store.trailHead[slot];
-      for (let k = 1; k <= count; k++) {
-        const j = base + ((head - k + TRAIL_POINTS) % TRAIL_POINTS);
-        const age = tNow - store.trailT[j];
-        if (age > store.trailS) break;
-        const px = (offsetX + store.trailX[j] * ppm) | 0;
-        const py = (offsetY - store.trailY[j] * ppm) | 0;
-        if (px < 0 || py < 0 || px >= width - 1 || py >= height - 1) continue;
-        const colour = colours[Math.min(FADE_LEVELS - 1, Math.max(0, (age * fadeScale) | 0))];
+      // newest point first, walking the ring backwards from the write position
+      let ring = store.trailHead[slot];
+      for (let k = 0; k < count; k++) {
+        ring = ring === 0 ? TRAIL_POINTS - 1 : ring - 1;
+        const j = base + ring;
+        const age = tNow - trailT[j];
+        if (age > trailS) break;
+        const px = (offsetX + trailX[j] * ppm) | 0;
+        const py = (offsetY - trailY[j] * ppm) | 0;
+        if (px < 0 || py < 0 || px >= lastX || py >= lastY) continue;
+        const level = (age * fadeScale) | 0;
+        const colour = colours[level < 0 ? 0 : level];
         const p = py * width + px;
         pixels[p] = colour;
         pixels[p + 1] = colour;

@@ -185,7 +185,7 @@ def test_display_reconnects_after_the_server_closes():
 
 @needs_chromium
 def test_display_5000_tracks_with_full_trails_p95_frame_time_under_50ms():
-    n, n_frames = 5000, 90
+    n, n_frames = 5000, 110
     traffic = SyntheticTraffic(n, dt_s=2.0, seed=7)
     frames = [traffic.frame(k) for k in range(n_frames)]
     server = DisplayServer(hello_text(trail_s=120.0), frames, labels=traffic.labels, period_s=0.05)
@@ -200,7 +200,7 @@ def test_display_5000_tracks_with_full_trails_p95_frame_time_under_50ms():
     assert final["tracks"] == n and final["errors"] == []
     # trails hold 64 points per track once 120 s of picture have passed: measure only those frames
     times = [t for t, sequence in zip(final["frameTimesMs"], final["frameSequences"]) if sequence >= 64]
-    assert len(times) >= 15, final["frameSequences"]
+    assert len(times) >= 25, final["frameSequences"]
     assert trail_points >= 60 * n
     p95 = float(np.percentile(times, 95))
     assert p95 < 50.0, f"p95 frame time {p95:.1f} ms over {len(times)} frames of {n} tracks"
