@@ -12,7 +12,8 @@ import pytest
 from skytrack.app.run import run_tracking
 from skytrack.app.simulate import run_simulation, write_simulation
 from skytrack.io import read_sensors, read_tracks
-from skytrack.io.asterix.cat062 import decode_cat062, time_of_day_at_epoch
+from skytrack.io.asterix.cat062 import time_of_day_at_epoch
+from skytrack.io.asterix.cat062_read import decode_cat062
 from skytrack.io.tracks import read_tracks_metadata
 
 

@@ -11,13 +11,13 @@ import pytest
 from skytrack.io.asterix.cat062 import (
     DEFAULT_SYSTEM_SAC_SIC,
     Cat062Writer,
-    decode_cat062,
     encode_cat062,
     quantise_tracks,
     reference_records,
     system_sac_sic,
     time_of_day_at_epoch,
 )
+from skytrack.io.asterix.cat062_read import decode_cat062, decode_cat062_libasterix
 
 FT = 0.3048
 #: half an LSB of every item (rounding to the nearest LSB), plus float slack
@@ -174,3 +174,62 @@ def test_decoding_names_a_bad_block_and_counts_other_categories():
     assert len(decoded) == 3 and decoded.attrs["skipped_blocks"] == [(0, 48)]
     with pytest.raises(ValueError, match=f"byte offset {len(good)} \\(block 1\\): bad block length"):
         decode_cat062(good + bytes([62, 0, 200, 1]))
+
+
+def assert_same_frames(got: pd.DataFrame, want: pd.DataFrame) -> None:
+    assert list(got.columns) == list(want.columns) and len(got) == len(want)
+    for name in want.columns:
+        a, b = got[name].to_numpy(), want[name].to_numpy()
+        if b.dtype.kind == "f":
+            assert np.array_equal(a.astype(float), b, equal_nan=True), name
+        else:
+            assert texts(a) == texts(b), name
+
+
+def test_the_numpy_engine_reads_what_libasterix_reads():
+    data = encode_cat062(random_tracks(300, seed=11), time_of_day_at_epoch_s=86_000.0)
+    settings = {"time_of_day_at_epoch_s": 86_000.0}
+    assert_same_frames(decode_cat062(data, engine="numpy", **settings),
+                       decode_cat062(data, engine="libasterix", **settings))
+
+
+#: items skytrack does not write, as another system may send them (the numpy engine steps over them)
+FOREIGN_ITEMS = {
+    "210": 0x1234, "245": 0x41C3, "290": {"TRK": 5, "ADS": 300, "MLT": 7}, "295": {"MFL": 1, "MD2": 2, "MB": 9},
+    "390": {"TAG": 0x0102, "TOD": [0x01020304, 0x05060708], "PEC": 5}, "270": ((16, None), (32, None)),
+    "340": {"SID": 0x0203, "POS": 0x01020304, "TYP": 0x20}, "135": 0x0100, "200": 0x10, "120": 5, "300": 3,
+    "500": {"APC": 0x00100020, "COV": 7, "APW": 5, "AGA": 3, "ATV": 0x0102, "AA": 9, "ARC": 4},
+    "380": {"ADR": 0xABC123, "MHG": 0x100, "TIS": ((1, 0, 0, None),), "TID": [0, 0],
+            "BDSDATA": [0x1122334455667788], "BPS": 3},
+}
+
+
+def _foreign_data(with_510: bool) -> bytes:
+    import asterix.generated as gen
+
+    spec = gen.Cat_062_1_21
+    raw = quantise_tracks(random_tracks(14, seed=4))
+    records = reference_records(raw)
+    for k, (item, value) in enumerate(FOREIGN_ITEMS.items()):
+        records[k] = records[k].set_item(item, value)
+    if with_510:
+        records[-1] = records[-1].set_item("510", [(1, 2)])
+    return spec.create(records).unparse().to_bytes()
+
+
+def test_the_numpy_engine_steps_over_items_it_does_not_read():
+    data = _foreign_data(with_510=False)
+    frame = decode_cat062(data, engine="numpy")
+    assert_same_frames(frame, decode_cat062(data, engine="libasterix"))
+    assert list(FOREIGN_ITEMS)[11:] == ["500", "380"]
+    assert frame["icao24"].iloc[12] == "abc123"
+    assert frame["var_vx"].iloc[11] == (1 * 0.25) ** 2 and frame["var_vy"].iloc[11] == (2 * 0.25) ** 2
+
+
+def test_input_the_scan_cannot_walk_goes_to_libasterix():
+    data = _foreign_data(with_510=True)  # I062/510: elements that end in FX
+    with pytest.raises(ValueError, match="numpy engine cannot walk"):
+        decode_cat062(data, engine="numpy")
+    frame = decode_cat062(data)
+    assert_same_frames(frame, decode_cat062(data, engine="libasterix"))
+    assert len(frame) == len(decode_cat062_libasterix(data)[0]) == 14
