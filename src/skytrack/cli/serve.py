@@ -158,7 +158,8 @@ def replay(
             return
     console.print(f"sent {report.records} plots in {report.datagrams} datagrams ({report.bytes} bytes, "
                   f"{report.passes} pass{'es' if report.passes != 1 else ''}) in {report.elapsed_s:.1f} s: "
-                  f"{report.records_per_s:,.0f} plots/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule")
+                  f"{report.records_per_s:,.0f} plots/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule",
+                  soft_wrap=True)
 
 
 def register_serve(app: typer.Typer) -> None:

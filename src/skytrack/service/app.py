@@ -5,8 +5,8 @@
 * an asyncio ``DatagramProtocol`` on the UDP port (unicast, or a multicast group it joins) that only
   appends each datagram and its receive time to a bounded inbox (``MAX_INBOX_DATAGRAMS``: beyond it the
   datagram is counted as dropped for overload, never silently lost);
-* one tracking task: every ``tick_s`` it hands the inbox to a worker thread (``asyncio.to_thread``: decode,
-  reorder, track, encode), so the event loop stays free for the network, then broadcasts the frames; the
+* one tracking task: every ``tick_s`` it hands the inbox to its worker thread (one thread for the service's
+  life: decode, reorder, track, encode), so the event loop stays free for the network, then broadcasts the frames; the
   checkpoint (``save_checkpoint``) is written in the same worker call, between two tracker steps;
 * one bounded queue per WebSocket client: a client too slow to take a frame loses it (counted per client and
   in ``frames_dropped``), the tracker never waits for a client.
@@ -23,6 +23,7 @@ import contextlib
 import socket
 import struct
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -104,6 +105,8 @@ class LiveService:
         self.udp_bound: tuple[str, int] | None = None
         self._transport = None
         self._task: asyncio.Task | None = None
+        # one worker thread for every tracking step: the tracker's memory stays in one allocator arena
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="skytrack-tracking")
         self._plots_rate = (time.time(), 0)
         self.plots_per_s = 0.0
 
@@ -141,6 +144,7 @@ class LiveService:
                 await self._task
         if self._transport is not None:
             self._transport.close()
+        self._executor.shutdown(wait=True)
 
     # ------------------------------------------------------------------ tracking
     def _work(self, datagrams: list[bytes], times: list[float]) -> tuple[list, str | None]:
@@ -175,7 +179,8 @@ class LiveService:
             datagrams, times = self.inbox, self.inbox_times
             self.inbox, self.inbox_times = [], []
             try:
-                frames, note = await asyncio.to_thread(self._work, datagrams, times)
+                frames, note = await asyncio.get_running_loop().run_in_executor(self._executor, self._work,
+                                                                                 datagrams, times)
             except Exception as error:  # the service keeps running; the error is counted and shown
                 self.pipeline.counters["step_errors"] += 1
                 self.pipeline.tracker_errors.append(f"{type(error).__name__}: {error}")

@@ -135,18 +135,16 @@ def column_offsets(n: int) -> dict[str, int]:
     return offsets
 
 
+#: the wire integer of every valid Mode 3/A text
+_MODE3A_OF_TEXT = {f"{code:04o}": code for code in range(4096)}
+
+
 def mode3a_codes(texts: Sequence[object] | np.ndarray) -> np.ndarray:
     """Mode 3/A texts of 4 octal digits (``"7500"``) to the wire integers; missing or malformed texts
-    (None, NaN, "", "12a4") give :data:`MODE3A_NONE`.  One parse per distinct value."""
-    texts = np.asarray(texts, dtype=object)
-    if len(texts) == 0:
-        return np.zeros(0, np.uint16)
-    distinct, inverse = np.unique(texts.astype(str), return_inverse=True)
-    codes = np.full(len(distinct), MODE3A_NONE, np.uint16)
-    for i, text in enumerate(distinct):
-        if len(text) == 4 and all(c in "01234567" for c in text):
-            codes[i] = int(text, 8)
-    return codes[inverse.reshape(-1)]
+    (None, NaN, "", "12a4") give :data:`MODE3A_NONE`."""
+    lookup = _MODE3A_OF_TEXT.get
+    return np.fromiter((lookup(text, MODE3A_NONE) if isinstance(text, str) else MODE3A_NONE for text in texts),
+                       dtype=np.uint16, count=len(texts))
 
 
 def hello_message(sensors, trail_s: float = DEFAULT_TRAIL_S) -> str:

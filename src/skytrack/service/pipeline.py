@@ -25,7 +25,7 @@ import numpy as np
 
 from skytrack.core.plots import FT_TO_M, PlotBatch
 from skytrack.service.frames import (
-    STATUS_COASTING, STATUS_CONFIRMED, STATUS_IDENTIFIED, encode_frame, mode3a_codes,
+    MODE3A_NONE, STATUS_COASTING, STATUS_CONFIRMED, STATUS_IDENTIFIED, encode_frame, mode3a_codes,
 )
 from skytrack.service.reorder import ReorderBuffer
 
@@ -209,14 +209,17 @@ class LivePipeline:
             return []
         columns = {name: table.column(name).to_numpy() for name in
                    ("time", "track_id", "lat", "lon", "alt_m", "vx", "vy", "vz", "n_misses")}
-        text = {name: np.asarray(table.column(name).to_pylist(), dtype=object)
-                for name in ("mode3a", "icao24", "callsign")}
+        # text columns as dictionary indices (-1: null): each distinct text is read once, not once per row
+        text = {name: _dictionary_indices(table.column(name)) for name in ("mode3a", "icao24", "callsign")}
         ve, vn, vu = local_velocity(columns["vx"], columns["vy"], columns["vz"], columns["lat"], columns["lon"],
                                     self.sensors.origin.lat, self.sensors.origin.lon)
-        identified = (text["icao24"] != None) | (text["callsign"] != None)  # noqa: E711 (object arrays)
+        identified = (text["icao24"][0] >= 0) | (text["callsign"][0] >= 0)
         status = (STATUS_CONFIRMED + STATUS_COASTING * (columns["n_misses"] > 0)
                   + STATUS_IDENTIFIED * identified).astype(np.uint8)
-        codes = mode3a_codes(text["mode3a"])
+        mode3a_index, mode3a_texts = text["mode3a"]
+        codes = np.append(mode3a_codes(mode3a_texts), MODE3A_NONE).astype(np.uint16)[mode3a_index]
+        callsign = _texts(*text["callsign"])
+        icao24 = _texts(*text["icao24"])
         times = columns["time"]
         starts = np.flatnonzero(np.concatenate([[True], times[1:] != times[:-1]]))
         bounds = np.append(starts, len(times))
@@ -229,10 +232,11 @@ class LivePipeline:
                 mode3a=codes[rows], status=status[rows], t_s=float(times[a]), last_plot_s=self.last_plot_s,
                 sequence=self.sequence & 0xFFFFFFFF, sent_unix_s=now_wall)
             self.sequence += 1
-            changed = self._changed_labels(columns["track_id"][rows], text["callsign"][rows], text["icao24"][rows],
-                                           identified[rows])
+            changed = self._changed_labels(columns["track_id"][rows], callsign[rows], icao24[rows], identified[rows])
             frames.append(FrameOut(frame, float(times[a]), self.last_plot_s, int(b - a), changed))
         self.tracks_now = frames[-1].n_tracks
+        if len(self.labels) > 2 * max(self.tracks_now, 64):  # labels of ended tracks: forgotten (bounded memory)
+            self.forget_labels(columns["track_id"][starts[-1]:])
         self.counters["frames_built"] += len(frames)
         self.counters["output_instants"] += len(frames)
         return frames
@@ -277,6 +281,22 @@ class LivePipeline:
 
         bank = self.tracker.bank
         self.confirmed_ids = np.array(bank.track_id[bank.status == CONFIRMED], dtype=np.int64)
+
+
+def _dictionary_indices(column) -> tuple[np.ndarray, list]:
+    """An Arrow text column as (indices into its distinct values, -1 for null; the distinct values)."""
+    import pyarrow as pa
+
+    array = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+    if not pa.types.is_dictionary(array.type):
+        array = array.dictionary_encode()
+    indices = array.indices.fill_null(-1).to_numpy(zero_copy_only=False).astype(np.int64)
+    return indices, array.dictionary.to_pylist()
+
+
+def _texts(indices: np.ndarray, values: list) -> np.ndarray:
+    """Object array of the texts (None for null) of dictionary indices."""
+    return np.append(np.array(values, dtype=object), None)[indices]
 
 
 def local_velocity(vx, vy, vz, lat_deg, lon_deg, origin_lat_deg: float, origin_lon_deg: float):
