@@ -109,7 +109,7 @@ def write_simulation(result: SimulationResult, out: str | Path, fmt: str = "parq
     if fmt == "asterix":
         return write_asterix_simulation(result, out, progress=progress)
     if fmt not in TABLE_FORMATS:
-        raise ValueError(f"format must be parquet, csv or asterix, got {fmt!r}")
+        raise ValueError(f"format must be parquet or csv (tables) or asterix, got {fmt!r}")
     out = Path(out)
     paths = {
         "plots": write_plots(result.plots, out / f"plots.{fmt}", sensors=result.sensors),
