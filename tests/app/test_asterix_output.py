@@ -144,3 +144,20 @@ def test_simulate_asterix_decodes_to_the_parquet_plots_after_quantisation(tmp_pa
         assert np.abs(adsb_got[name] - adsb_want[name]).max() <= 90 / 2**30 + 1e-12, name
     assert np.abs(adsb_got["alt_m"] - adsb_want["alt_m"]).max() <= 3.125 * 0.3048 + 1e-9
     assert list(adsb_got["icao24"]) == list(adsb_want["icao24"])
+
+
+def test_simulate_asterix_refuses_plots_that_cat048_cannot_carry(tmp_path):
+    result = run_simulation("radar3d", seed=1, duration=20)
+    with pytest.raises(ValueError, match=r"sensor \w+ \(radar-3d\): the CAT048 plots written carry no elevation"):
+        write_simulation(result, tmp_path, "asterix")
+    assert not (tmp_path / "plots.ast").exists()
+
+
+def test_a_run_without_tracks_leaves_an_empty_cat062_file_and_its_metadata(crossing, tmp_path):
+    plots = pd.read_parquet(crossing["plots"]).iloc[:3]
+    plots.to_parquet(tmp_path / "few.parquet")
+    summary = run_tracking(tmp_path / "few.parquet", crossing["sensors"], tmp_path / "tracks.ast")
+    assert summary.track_rows == 0 and summary.no_tracks_reason
+    assert (tmp_path / "tracks.ast").read_bytes() == b""
+    assert len(decode_cat062(b"")) == 0
+    assert read_tracks_metadata(tmp_path / "tracks.ast")["input_plots"] == 3

@@ -129,7 +129,8 @@ def write_asterix_simulation(result: SimulationResult, out: str | Path, *,
     in sensor order when the scenario gives none) and, with ADS-B, ``adsb_station``.
 
     Not representable in CAT048 and not written: ``elevation_deg``, ``range_rate_mps``, ``iff``,
-    ``scan``, ``truth_id`` and an airborne radar's platform columns; the ADS-B reports' ``truth_id``."""
+    ``scan``, ``truth_id``; the ADS-B reports' ``truth_id``.  A scenario whose 3-D or airborne
+    radars have plots is refused (their plots need the elevation or the carrier's position)."""
     from skytrack.io import write_sensors, write_truth
     from skytrack.io.asterix.cat062 import time_of_day_at_epoch
     from skytrack.io.asterix.recording import adsb_station, encode_recording, north_markers, with_sac_sic
@@ -137,6 +138,12 @@ def write_asterix_simulation(result: SimulationResult, out: str | Path, *,
     report = progress or (lambda stage, completed, total: None)
     out = Path(out)
     has_adsb = result.adsb is not None and len(result.adsb) > 0
+    plotted = set(result.plots["sensor"].astype(str)) if len(result.plots) else set()
+    for sensor in result.sensors.sensors:
+        if sensor.name in plotted and sensor.type in ("radar-3d", "radar-airborne"):
+            what = "elevation" if sensor.type == "radar-3d" else "carrier position"
+            raise ValueError(f"sensor {sensor.name} ({sensor.type}): the CAT048 plots written carry no {what}, so its "
+                             "plots could not be tracked from plots.ast; use --format parquet for this scenario")
     sensors, sac_sic = with_sac_sic(result.sensors, adsb=has_adsb)
     end = max([float(result.scenario.duration_s)] + [float(t["time"].max()) for t in (result.plots, result.adsb)
                                                      if t is not None and len(t)])
