@@ -161,3 +161,20 @@ def test_a_run_without_tracks_leaves_an_empty_cat062_file_and_its_metadata(cross
     assert (tmp_path / "tracks.ast").read_bytes() == b""
     assert len(decode_cat062(b"")) == 0
     assert read_tracks_metadata(tmp_path / "tracks.ast")["input_plots"] == 3
+
+
+def test_3d_tracks_carry_a_geometric_altitude(tmp_path):
+    paths = write_simulation(run_simulation("radar3d", seed=2, duration=90), tmp_path / "sim", "parquet")
+    run_tracking(paths["plots"], paths["sensors"], tmp_path / "tracks.parquet")
+    run_tracking(paths["plots"], paths["sensors"], tmp_path / "tracks.ast")
+    want = read_tracks(tmp_path / "tracks.parquet")
+    sensors = read_sensors(paths["sensors"])
+    got = decode_cat062((tmp_path / "tracks.ast").read_bytes(), origin=sensors.origin,
+                        time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
+    assert len(got) == len(want) > 20 and want["z"].notna().all()
+    assert np.abs(got["alt_m"] - want["alt_m"]).max() <= 3.125 * 0.3048 + 1e-9  # I062/130, 6.25 ft
+    # z from the decoded lat/lon/alt_m: the altitude's half LSB, and ~1e-5 m from the position's
+    assert np.abs(got["z"] - want["z"]).max() <= 3.125 * 0.3048 + 1e-3
+    assert np.abs(got["vz"] - want["vz"]).max() <= 3.125 * 0.3048 / 60 + 1e-9  # I062/220, 6.25 ft/min
+    std_z = np.minimum(np.sqrt(want["var_z"]), 255 * 6.25 * 0.3048)
+    assert np.abs(np.sqrt(got["var_z"]) - std_z).max() <= 3.125 * 0.3048 + 1e-9
