@@ -12,8 +12,11 @@ skipped by their structure from the UAP tables below (CAT048 edition 1.32, CAT03
 
 Problems (bad block length, unknown category, truncated record, unknown FRN, empty FSPEC)
 are written to arrays with their byte offsets; after a bad block length the scan looks for
-the next plausible block header (a known category whose length chains to the end of the
-input or to another known header).
+the next plausible block: one of a known category whose records fill it to the byte,
+followed by the end of the input or by another such block.  A block of an unknown category
+is skipped by its length when that leads on to the end or to a known block that parses (at
+most one more unknown block between); otherwise its header is taken for damage and the scan
+resynchronises the same way, so that a misread length never jumps over good blocks.
 """
 
 from __future__ import annotations
@@ -139,19 +142,80 @@ def _item_size(data, q, end, kind, size, sub_kinds, sub_sizes):
 
 
 @njit(cache=True)
-def _resync(data, start, category_row):
-    """First offset >= start that looks like a block header of a known category, or data.size."""
+def _records_fit(data, p, category_row, kinds, sizes, sub_kinds, sub_sizes):
+    """Whether the block at ``p`` (a known category, a length that fits the input) holds records
+    whose FSPECs and items end exactly at the block's end, with no unknown FRN."""
+    n = data.size
+    if p + 2 >= n:
+        return False
+    row = category_row[data[p]]
+    end = p + np.int64(data[p + 1]) * 256 + data[p + 2]
+    if row < 0 or end < p + 4 or end > n:
+        return False
+    r = p + 3
+    while r < end:
+        n_fspec = _simple_size(data, r, end, EXTENDED, 1)
+        if n_fspec < 0:
+            return False
+        q = r + n_fspec
+        present = 0
+        for octet in range(n_fspec):
+            bits = data[r + octet]
+            for bit in range(7):
+                if bits & (0x80 >> bit):
+                    frn = octet * 7 + bit
+                    present += 1
+                    if frn >= MAX_FRN or kinds[row, frn] == 0:
+                        return False
+                    size = _item_size(data, q, end, kinds[row, frn], sizes[row, frn], sub_kinds[row, frn],
+                                      sub_sizes[row, frn])
+                    if size < 0 or q + size > end:
+                        return False
+                    q += size
+        if present == 0:
+            return False
+        r = q
+    return r == end
+
+
+@njit(cache=True)
+def _resync(data, start, category_row, kinds, sizes, sub_kinds, sub_sizes):
+    """First offset >= start where a block of a known category starts whose records fill it
+    exactly and which is followed by the end of the input or by another such block (or a
+    header of an unknown category whose length leads on to one); data.size if none.  Bytes
+    inside damaged blocks rarely pass this: two consecutive blocks must parse to the byte."""
     n = data.size
     for p in range(start, n - 2):
-        if category_row[data[p]] < 0:
+        if not _records_fit(data, p, category_row, kinds, sizes, sub_kinds, sub_sizes):
             continue
+        nxt = p + np.int64(data[p + 1]) * 256 + data[p + 2]
+        if nxt == n or _records_fit(data, nxt, category_row, kinds, sizes, sub_kinds, sub_sizes):
+            return p
+        if nxt + 2 < n and category_row[data[nxt]] < 0:
+            after = nxt + np.int64(data[nxt + 1]) * 256 + data[nxt + 2]
+            if after == n or (after > nxt + 2 and _records_fit(data, after, category_row, kinds, sizes, sub_kinds,
+                                                               sub_sizes)):
+                return p
+    return n
+
+
+@njit(cache=True)
+def _unknown_block_fits(data, p, category_row, kinds, sizes, sub_kinds, sub_sizes):
+    """Whether the length of an unknown-category header at ``p`` leads to the end of the input or
+    to a block of a known category that parses (after at most one more unknown header)."""
+    n = data.size
+    for _ in range(2):
+        if p + 2 >= n:
+            return False
         length = np.int64(data[p + 1]) * 256 + data[p + 2]
         if length < 3 or p + length > n:
-            continue
-        nxt = p + length
-        if nxt == n or (nxt + 2 < n and category_row[data[nxt]] >= 0):
-            return p
-    return n
+            return False
+        p += length
+        if p == n:
+            return True
+        if category_row[data[p]] >= 0:
+            return _records_fit(data, p, category_row, kinds, sizes, sub_kinds, sub_sizes)
+    return False
 
 
 @njit(cache=True)
@@ -170,7 +234,7 @@ def scan(data, category_row, kinds, sizes, read_column, sub_kinds, sub_sizes,
     while p < n:
         length = np.int64(-1) if n - p < 3 else np.int64(data[p + 1]) * 256 + data[p + 2]
         if length < 3 or p + length > n:
-            nxt = _resync(data, p + 1, category_row)
+            nxt = _resync(data, p + 1, category_row, kinds, sizes, sub_kinds, sub_sizes)
             prob_code[nprob], prob_offset[nprob], prob_block[nprob] = 1, p, block
             prob_detail[nprob], prob_skipped[nprob] = length, nxt - p
             nprob += 1
@@ -180,8 +244,13 @@ def scan(data, category_row, kinds, sizes, read_column, sub_kinds, sub_sizes,
         row = category_row[data[p]]
         end = p + length
         if row < 0:
+            # an unknown category is skipped by its length when that length leads on to a known
+            # block that parses; otherwise the header is not one
+            # (a misread length could jump over 64 kB of good blocks): resynchronise
+            if not _unknown_block_fits(data, p, category_row, kinds, sizes, sub_kinds, sub_sizes):
+                end = _resync(data, p + 1, category_row, kinds, sizes, sub_kinds, sub_sizes)
             prob_code[nprob], prob_offset[nprob], prob_block[nprob] = 2, p, block
-            prob_detail[nprob], prob_skipped[nprob] = data[p], length
+            prob_detail[nprob], prob_skipped[nprob] = data[p], end - p
             nprob += 1
             p = end
             block += 1
