@@ -66,8 +66,10 @@ def test_tracks_ast_decodes_to_the_parquet_tracks_within_the_cat062_resolutions(
                for r in records}
     assert sac_sic == {(25, 201)}
 
-    # every column skytrack writes, through decode_cat062 (libasterix underneath)
-    got = decode_cat062(data, time_of_day_at_epoch_s=epoch_tod, origin=sensors.origin)
+    # every column skytrack writes, decoded by libasterix (and the numpy engine reads the same)
+    got = decode_cat062(data, time_of_day_at_epoch_s=epoch_tod, origin=sensors.origin, engine="libasterix")
+    fast = decode_cat062(data, time_of_day_at_epoch_s=epoch_tod, origin=sensors.origin, engine="numpy")
+    pd.testing.assert_frame_equal(fast, got, check_dtype=False)
     tolerances = {"time": 1 / 256, "x": 0.25, "y": 0.25, "vx": 0.125, "vy": 0.125, "lat": 90 / 2**25,
                   "lon": 90 / 2**25, "alt_m": 12.5 * 0.3048}  # 2-D: alt_m is the Mode C height, I062/136 (1/4 FL)
     for name, tolerance in tolerances.items():
