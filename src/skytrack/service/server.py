@@ -91,7 +91,7 @@ def run_server(service, http: tuple[str, int], on_started: Callable[[], None] | 
 
     app = build_app(service)
     server = uvicorn.Server(uvicorn.Config(app, host=http[0], port=http[1], log_level="warning", lifespan="on",
-                                           ws="websockets"))
+                                           ws="websockets-sansio"))
 
     async def main():
         serving = asyncio.create_task(server.serve())
