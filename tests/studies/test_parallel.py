@@ -139,3 +139,23 @@ def test_fuzzy_crossing_tasks_return_decisions_and_diagnostics_instead_of_fillin
     crossing.run_case(CROSSING_CASES[0], ["fuzzy"], 4, 3, keep=kept, diagnostic_runs=1, diagnostics=pairs)
     np.testing.assert_array_equal(kept["fuzzy"].track_id, here.decisions.track_id)
     pd.testing.assert_frame_equal(pairs[0], here.diagnostics, check_exact=True)
+
+
+def _mini_compare(ctx):
+    ctx.compare(ctx.cases(turn_g=(4.0,)), ctx.filters(), gatings=("off", "on"))
+
+
+def test_spec004_compare_gives_the_same_summary_and_progress_on_a_pool(tmp_path, pool):
+    """ctx.compare's filter runs as tasks: the summary of the in-process run, progress up to every run."""
+    from skytrack.studies.maneuver.study import StudyDefinition, StudyOptions, run_study
+
+    definition = StudyDefinition("mini", "a minimal study", _mini_compare, default_runs=4,
+                                 default_filters=("kf-cv", "kf-ca"))
+    calls = []
+    run_study(definition, StudyOptions(out=tmp_path / "here"))
+    run_study(definition, StudyOptions(out=tmp_path / "pool"), lambda text, done, total: calls.append((done, total)),
+              executor=pool)
+    here, there = (pd.read_csv(tmp_path / name / "summary.csv") for name in ("here", "pool"))
+    assert set(here["filter"]) == {"kf-cv", "kf-ca"}
+    pd.testing.assert_frame_equal(here, there, check_exact=True)
+    assert calls[-1] == (4, 4) and all(done <= total for done, total in calls)  # 2 filters x 2 gating modes
