@@ -50,11 +50,12 @@ def test_reorder_window_must_be_non_negative():
 def test_sac_sic_default_and_given(small_scene):
     sensors, _ = small_scene
     assert sensor_sac_sic(sensors) == {"radar1": (0, 1)}
-    sensors.sensors[0].extra.update(sac=25, sic=7)
+    radar = sensors.sensors[0]
+    radar.sac, radar.sic = 25, 7  # sensors.json's optional sac/sic fields
     try:
         assert sensor_sac_sic(sensors) == {"radar1": (25, 7)}
     finally:
-        del sensors.sensors[0].extra["sac"], sensors.sensors[0].extra["sic"]
+        radar.sac = radar.sic = None
     assert time_of_day_at_epoch("2021-10-07T12:00:00Z") == 43200.0
     assert time_of_day_at_epoch("2021-10-07T23:59:30.5+00:00") == 86370.5 and time_of_day_at_epoch(None) == 0.0
 

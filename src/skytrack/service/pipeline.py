@@ -35,20 +35,14 @@ LATENCY_SAMPLES = 2048
 
 
 def sensor_sac_sic(sensors) -> dict[str, tuple[int, int]]:
-    """(SAC, SIC) of every radar of a sensor set: the sensor's ``sac``/``sic`` fields when sensors.json gives
-    them, else SAC 0 and SIC = the radar's position among the sensors, counted from 1 (documented in
-    docs/service.md; replay and serve use the same rule, so they agree without configuration)."""
-    out = {}
-    for position, sensor in enumerate(sensors.sensors, start=1):
-        if not sensor.is_radar:
-            continue
-        sac = getattr(sensor, "sac", None)
-        sic = getattr(sensor, "sic", None)
-        if sac is None or sic is None:
-            sac, sic = sensor.extra.get("sac"), sensor.extra.get("sic")
-        if sac is None or sic is None:
-            sac, sic = 0, position
-        out[sensor.name] = (int(sac), int(sic))
+    """(SAC, SIC) of every radar of a sensor set: the sensor's ``sac``/``sic`` when sensors.json gives them,
+    else assigned as a simulated ASTERIX recording assigns them (:func:`skytrack.io.asterix.recording.with_sac_sic`:
+    SAC 0, SIC 1, 2, ... in sensor order, skipping pairs already taken), so that replay, serve and
+    ``simulate --format asterix`` agree without configuration."""
+    from skytrack.io.asterix.recording import with_sac_sic
+
+    _, pairs = with_sac_sic(sensors)
+    out = {s.name: pairs[s.name] for s in sensors.sensors if s.is_radar}
     seen: dict[tuple[int, int], str] = {}
     for name, key in out.items():
         if key in seen:
