@@ -144,3 +144,19 @@ def test_local_velocity_turns_north_at_a_distant_track():
     ve, vn, vu = local_velocity(np.array([100.0]), np.array([0.0]), np.array([5.0]), np.array([45.0]),
                                 np.array([0.0]), 45.0, 0.0)
     assert (ve[0], vn[0], vu[0]) == pytest.approx((100.0, 0.0, 5.0), abs=1e-9)
+
+
+def test_cat021_reports_in_the_feed_are_counted(small_scene):
+    import pandas as pd
+
+    from skytrack.io.asterix.cat021 import cat021_blocks, encode_cat021
+
+    sensors, plots = small_scene
+    adsb = pd.DataFrame({"time": [1.0, 2.0, 3.0], "icao24": ["4ca7b5", "4ca7b5", "3c6a01"],
+                         "lat": [48.9, 48.91, 49.0], "lon": [2.5, 2.51, 2.6], "alt_m": [9000.0, 9001.0, 7000.0]})
+    blocks = cat021_blocks(encode_cat021(adsb, (0, 101)))
+    pipeline = LivePipeline(sensors, Tracker(sensors), window_s=2.0)
+    pipeline.ingest([b"".join(blocks) if isinstance(blocks, list) else blocks] + _datagrams(plots.iloc[:10], sensors),
+                    [0.0, 0.0], now_wall=0.0)
+    assert pipeline.counters["adsb_reports"] == 3 and pipeline.counters["plots_received"] == 10
+    assert pipeline.counters["decode_problems"] == 0

@@ -21,6 +21,7 @@ COUNTERS: dict[str, tuple[str, str]] = {
     "skytrack_plots_unknown_sensor_total": ("plots_unknown_sensor", "plots whose SAC/SIC is no sensor of sensors.json"),
     "skytrack_decode_problems_total": ("decode_problems", "ASTERIX decoding problems (damaged input, by kind below)"),
     "skytrack_service_messages_total": ("service_messages", "CAT034 service messages decoded"),
+    "skytrack_adsb_reports_total": ("adsb_reports", "CAT021 ADS-B reports decoded (counted; labels come from --adsb)"),
     "skytrack_frames_sent_total": ("frames_sent", "frames broadcast to the WebSocket clients"),
     "skytrack_frames_dropped_total": ("frames_dropped", "frames a slow WebSocket client did not get"),
     "skytrack_tracker_errors_total": ("tracker_errors", "plot batches the tracker refused (see /health)"),

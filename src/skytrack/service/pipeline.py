@@ -124,11 +124,14 @@ class LivePipeline:
             self.problems[problem.kind] += 1
         self.counters["decode_problems"] += len(decoded.problems.problems)
         self.counters["service_messages"] += len(decoded.service["time"])
+        # CAT021 ADS-B reports are counted, not used: live labelling takes an ADS-B file (serve --adsb)
+        adsb = getattr(decoded, "adsb", None) or {}
+        self.counters["adsb_reports"] += len(adsb.get("time", ()))
         plots = decoded.plots
         n = len(plots["time"])
         self.counters["plots_received"] += n
         if n == 0:
-            if not decoded.problems.problems and not len(decoded.service["time"]):
+            if not decoded.problems.problems and not len(decoded.service["time"]) and not len(adsb.get("time", ())):
                 self.counters["datagrams_without_records"] += len(datagrams)
             return
         key = plots["sac"].astype(np.int64) * 256 + plots["sic"].astype(np.int64)
