@@ -142,23 +142,23 @@ def replay(
         console.print(f"[yellow]note:[/] {replayer.oversize} datagrams are longer than {max_datagram} bytes "
                       "(recorded blocks that long are sent whole; fine on loopback)")
     total = None if loop else data.records
-    display = Progress(TextColumn("[bold]replay"), BarColumn(), TextColumn("{task.completed:,.0f} plots"),
+    display = Progress(TextColumn("[bold]replay"), BarColumn(), TextColumn("{task.completed:,.0f} records"),
                        TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), console=error_console)
     with display:
         task = display.add_task("replay", total=total, rate="")
 
         def progress(report) -> None:
             done = report.records if total is None else min(report.records, total)
-            display.update(task, completed=done, rate=f"{report.records_per_s:,.0f} plots/s")
+            display.update(task, completed=done, rate=f"{report.records_per_s:,.0f} records/s")
 
         try:
             report = replayer.run(progress, duration_s=duration_s)
         except KeyboardInterrupt:
             replayer.stop()
             return
-    console.print(f"sent {report.records} plots in {report.datagrams} datagrams ({report.bytes} bytes, "
+    console.print(f"sent {report.records} records in {report.datagrams} datagrams ({report.bytes} bytes, "
                   f"{report.passes} pass{'es' if report.passes != 1 else ''}) in {report.elapsed_s:.1f} s: "
-                  f"{report.records_per_s:,.0f} plots/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule",
+                  f"{report.records_per_s:,.0f} records/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule",
                   soft_wrap=True)
 
 
