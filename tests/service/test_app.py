@@ -91,6 +91,13 @@ def test_health_metrics_and_websocket_over_loopback_udp(small_scene, tmp_path):
         assert "# TYPE skytrack_plots_late_total counter" in metrics
         page = client.get("/")
         assert page.status_code == 200 and "<html" in page.text.lower()
+        checkpoints = service.pipeline.counters["checkpoints"]
+    # the app's shutdown writes one more checkpoint, with every plot tracked
+    assert service.pipeline.counters["checkpoints"] == checkpoints + 1
+    from skytrack.app.checkpoint import read_checkpoint
+
+    header, _ = read_checkpoint(tmp_path / "skytrack.checkpoint.npz")
+    assert header["last_plot_s"] == pytest.approx(float(plots["time"].max()), abs=1 / 128)
 
 
 def test_a_slow_client_loses_frames_and_the_tracker_goes_on(small_scene):

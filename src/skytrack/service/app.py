@@ -138,12 +138,16 @@ class LiveService:
         self._task = asyncio.create_task(self._track_forever())
 
     async def stop(self) -> None:
+        """Stop receiving and tracking; with checkpoints, write a last one (a restart then resumes from here)."""
+        if self._transport is not None:
+            self._transport.close()
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
-        if self._transport is not None:
-            self._transport.close()
+        if self.checkpoint_path is not None and self.pipeline.counters["plots_tracked"]:
+            note = await asyncio.get_running_loop().run_in_executor(self._executor, self._save_checkpoint, time.time())
+            self.log(note or f"checkpoint written to {self.checkpoint_path} at shutdown")
         self._executor.shutdown(wait=True)
 
     # ------------------------------------------------------------------ tracking
