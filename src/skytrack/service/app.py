@@ -35,11 +35,27 @@ MAX_INBOX_DATAGRAMS = 65536
 CLIENT_QUEUE_FRAMES = 8
 #: kernel receive buffer asked for the UDP socket (bursts of a fast replay)
 UDP_RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
+#: seconds between two returns of freed heap memory to the system (glibc malloc_trim)
+TRIM_EVERY_S = 5.0
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 MISSING_DISPLAY_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>skytrack serve</title></head>
 <body><h1>skytrack serve</h1><p>The display (skytrack/service/static/index.html) is not installed in this copy of
 skytrack. The service runs: <a href="/health">/health</a>, <a href="/metrics">/metrics</a>, WebSocket
 <code>/ws</code> (protocol: docs/service.md).</p></body></html>"""
+
+
+def _malloc_trim():
+    """glibc's ``malloc_trim`` (None elsewhere)."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+_MALLOC_TRIM = _malloc_trim()
 
 
 def parse_address(text: str, default_host: str) -> tuple[str, int]:
@@ -108,6 +124,7 @@ class LiveService:
         # one worker thread for every tracking step: the tracker's memory stays in one allocator arena
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="skytrack-tracking")
         self._plots_rate = (time.time(), 0)
+        self._last_trim = time.time()
         self.plots_per_s = 0.0
 
     # ------------------------------------------------------------------ UDP
@@ -158,6 +175,12 @@ class LiveService:
         frames = pipeline.step()
         note = None
         now = time.time()
+        if now - self._last_trim >= TRIM_EVERY_S:
+            # the tracker's arrays grow and shrink with the tentative tracks: hand freed heap pages back, so
+            # the RSS follows the live state rather than the allocator's high-water mark
+            self._last_trim = now
+            if _MALLOC_TRIM is not None:
+                _MALLOC_TRIM(0)
         due = self.checkpoint_path is not None and not (now - self.last_checkpoint_wall < self.checkpoint_every_s)
         if due and pipeline.counters["plots_tracked"]:
             note = self._save_checkpoint(now)
