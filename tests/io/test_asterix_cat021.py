@@ -24,6 +24,7 @@ from skytrack.io.asterix import decode_asterix
 from skytrack.io.asterix import cat021 as c21
 from skytrack.io.asterix import framing
 from skytrack.io.asterix import units as u
+from skytrack.io.asterix.bytes_assembly import callsign_code
 from skytrack.io.asterix.cat021 import cat021_blocks, decode_cat021, encode_cat021
 
 CAT021 = gen.Cat_021_2_6
@@ -155,7 +156,7 @@ def test_alternative_items_and_skipped_items_decode_like_libasterix():
     rec = CAT021.cv_record.create({
         "010": (("SAC", 7), ("SIC", 9)), "040": (1 << 4,), "161": (0, 1234), "015": 3, "073": 5 * 128 + 3,
         "130": (("LAT", -(1 << 22)), ("LON", (1 << 23) - 1)), "072": 77, "080": 0x123456, "145": -48,
-        "090": (0x12,), "210": (0, 0, 2, 0), "155": (("RE", 0), ("BVR", -100)), "170": c21._callsign_code("KLM9", 0),
+        "090": (0x12,), "210": (0, 0, 2, 0), "155": (("RE", 0), ("BVR", -100)), "170": callsign_code("KLM9"),
         "220": {"WS": 1}, "110": {"TIS": (0,)}, "250": [0x1122334455667788], "295": {"AOS": 5, "M3A": 6},
     })
     data = CAT021.create([rec]).unparse().to_bytes()

@@ -21,7 +21,7 @@ Items written, in UAP order (docs/formats.md, "ASTERIX CAT062"):
 
 :func:`encode_cat062` assembles the bytes with numpy over all rows (no per-record Python):
 every item is a column of bytes scattered into one buffer at offsets computed from the
-presence of the items.  It is tested byte for byte against libasterix's encoder
+presence of the items (:mod:`skytrack.io.asterix.bytes_assembly`, shared with CAT048/034/021).  It is tested byte for byte against libasterix's encoder
 (:func:`reference_records`).  :func:`decode_cat062` reads any CAT062 edition 1.21 data with
 libasterix (the reference decoder) into a tracks-table-like DataFrame.
 """
@@ -32,6 +32,17 @@ from collections.abc import Mapping
 
 import numpy as np
 import pandas as pd
+
+from skytrack.io.asterix.bytes_assembly import (
+    assemble_records,
+    big_endian,
+    blocks_from_records,
+    callsign_code,
+    codes_of_texts,
+    distinct_texts,
+    icao24_code,
+    mode3a_code,
+)
 
 CATEGORY = 62
 FEET_M = 0.3048
@@ -47,13 +58,12 @@ SECONDS_PER_DAY = 86400.0
 DEFAULT_SYSTEM_SAC_SIC = (0, 100)
 DEFAULT_SERVICE_ID = 1
 MAX_RECORDS_PER_BLOCK = 128
+_WHAT = "tracks to CAT062"  # the start of every error message about a tracks row
 
 #: (item, FRN index from 0, size in bytes or 0 when variable), in UAP order
 _ITEMS = (("010", 0, 2), ("015", 2, 1), ("070", 3, 3), ("105", 4, 8), ("100", 5, 6), ("185", 6, 4), ("060", 8, 2),
           ("380", 10, 0), ("040", 11, 2), ("080", 12, 4), ("136", 16, 2), ("130", 17, 2), ("220", 19, 2),
           ("500", 26, 0))
-#: the ICAO 6-bit character set of I062/380 ID (space, A-Z, 0-9)
-_ID_CHARS = {" ": 32, **{chr(65 + k): 1 + k for k in range(26)}, **{str(d): 48 + d for d in range(10)}}
 
 
 def _spec():
@@ -92,19 +102,6 @@ def _floats(tracks: pd.DataFrame, name: str) -> np.ndarray:
     return pd.to_numeric(tracks[name], errors="coerce").to_numpy(float, na_value=np.nan)
 
 
-def distinct_texts(tracks: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct texts and each row's index into them (-1: null)."""
-    if name not in tracks.columns:
-        return np.empty(0, object), np.full(len(tracks), -1)
-    values = tracks[name].astype(object).to_numpy()
-    present = ~pd.isna(values)
-    index = np.full(len(values), -1)
-    if not present.any():
-        return np.empty(0, object), index
-    distinct, inverse = np.unique(values[present].astype(str), return_inverse=True)
-    index[present] = inverse
-    return distinct, index
-
 
 def _quantise(values: np.ndarray, lsb: float, bits: int, signed: bool, present: np.ndarray, column: str) -> np.ndarray:
     raw = np.zeros(values.size, np.int64)
@@ -124,39 +121,8 @@ def _saturated(std: np.ndarray, lsb: float, bits: int, present: np.ndarray) -> n
     return raw
 
 
-def codes_of_texts(distinct: np.ndarray, index: np.ndarray, parse, column: str, what: str = "tracks to CAT062"
-                   ) -> np.ndarray:
-    """``parse`` of every distinct text (few aircraft), spread to the rows; the first bad row is named."""
-    codes = np.zeros(distinct.size, np.int64)
-    for k, text in enumerate(distinct):
-        try:
-            codes[k] = parse(text)
-        except ValueError:
-            row = int(np.flatnonzero(index == k)[0])
-            raise ValueError(f"{what}: row {row}, column {column}: {text!r} cannot be written") from None
-    return np.where(index >= 0, codes[np.maximum(index, 0)] if codes.size else 0, 0)
 
 
-def mode3a_code(text: str) -> int:
-    if len(text) != 4 or any(c not in "01234567" for c in text):
-        raise ValueError(text)
-    return int(text, 8)
-
-
-def icao24_code(text: str) -> int:
-    if len(text) != 6:
-        raise ValueError(text)
-    return int(text, 16)
-
-
-def _callsign(text: str) -> int:
-    text = text.strip().upper()
-    if len(text) > 8 or any(c not in _ID_CHARS for c in text):
-        raise ValueError(text)
-    code = 0
-    for c in text.ljust(8):
-        code = (code << 6) | _ID_CHARS[c]
-    return code
 
 
 def quantise_tracks(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_SYSTEM_SAC_SIC,
@@ -192,11 +158,11 @@ def quantise_tracks(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_
     raw["has_185"] = np.isfinite(vx) & np.isfinite(vy)
     raw["vx"], raw["vy"] = (_quantise(v, V_LSB_MPS, 16, True, raw["has_185"], c) for v, c in ((vx, "vx"), (vy, "vy")))
     distinct, index = distinct_texts(tracks, "mode3a")
-    raw["has_060"], raw["mode3a"] = index >= 0, codes_of_texts(distinct, index, mode3a_code, "mode3a")
+    raw["has_060"], raw["mode3a"] = index >= 0, codes_of_texts(distinct, index, mode3a_code, "mode3a", _WHAT)
     distinct, index = distinct_texts(tracks, "icao24")
-    raw["has_adr"], raw["address"] = index >= 0, codes_of_texts(distinct, index, icao24_code, "icao24")
+    raw["has_adr"], raw["address"] = index >= 0, codes_of_texts(distinct, index, icao24_code, "icao24", _WHAT)
     distinct, index = distinct_texts(tracks, "callsign")
-    raw["has_id"], raw["callsign"] = index >= 0, codes_of_texts(distinct, index, _callsign, "callsign")
+    raw["has_id"], raw["callsign"] = index >= 0, codes_of_texts(distinct, index, callsign_code, "callsign", _WHAT)
     raw["track_number"] = track_id & 0xFFFF
     geometric = np.isfinite(z) & np.isfinite(alt)
     raw["has_130"], raw["has_136"] = geometric, ~np.isfinite(z) & np.isfinite(alt)
@@ -223,11 +189,6 @@ def quantise_tracks(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_
     raw["aga"] = _saturated(std_z / FEET_M, 6.25, 8, raw["has_aga"])
     return raw
 
-
-def big_endian(values: np.ndarray, n_bytes: int) -> np.ndarray:
-    """(rows, n_bytes) uint8, most significant byte first."""
-    shifts = 8 * np.arange(n_bytes - 1, -1, -1)
-    return ((np.asarray(values, np.int64)[:, None] >> shifts) & 0xFF).astype(np.uint8)
 
 
 def _item_columns(raw: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, list[np.ndarray]]]:
@@ -264,67 +225,11 @@ def _item_columns(raw: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, lis
     return [(frn, presence.get(item, always), parts[item]) for item, frn, _ in _ITEMS]
 
 
-def assemble_records(n: int, columns: list[tuple[int, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]]
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Records of any category assembled with numpy: ``columns`` lists, in UAP order, each item's
-    FRN index (from 0), presence per row and parts ``(present, bytes (rows, k))``.  Returns all
-    records back to back (uint8) and each record's start offset (one more: the end)."""
-    n_octets = max(frn for frn, _, _ in columns) // 7 + 1
-    top = 7 * n_octets - 1
-    fspec_bits = np.zeros(n, np.int64)  # FRN index k at bit top - k (octets of 7 bits)
-    for frn, present, _ in columns:
-        fspec_bits |= present.astype(np.int64) << (top - frn)
-    octets = np.stack([(fspec_bits >> (top - 6 - 7 * k)) & 0x7F for k in range(n_octets)], axis=1)
-    fspec_len = np.where(octets.any(axis=1), n_octets - np.argmax(octets[:, ::-1] != 0, axis=1), 1)
-    fspec = (octets << 1) | (np.arange(n_octets)[None, :] < fspec_len[:, None] - 1)  # FX on all but the last octet
-    lengths = fspec_len.copy()
-    for _, present, parts in columns:
-        for part_present, data in parts:
-            lengths += np.where(present & part_present, data.shape[1], 0)
-    starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    out = np.zeros(int(starts[-1]), np.uint8)
-    for k in range(n_octets):
-        used = k < fspec_len
-        out[starts[:-1][used] + k] = fspec[used, k]
-    cursor = starts[:-1] + fspec_len
-    for _, present, parts in columns:
-        for part_present, data in parts:
-            rows = present & part_present
-            at = cursor[rows]
-            for b in range(data.shape[1]):
-                out[at + b] = data[rows, b]
-            cursor = cursor + np.where(rows, data.shape[1], 0)
-    return out, starts
-
 
 def record_bytes(raw: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """All CAT062 records back to back (uint8) and each record's start offset (one more: the end)."""
     return assemble_records(raw["x"].size, _item_columns(raw))
 
-
-def blocks_from_records(records: np.ndarray, starts: np.ndarray, max_records_per_block: int = MAX_RECORDS_PER_BLOCK,
-                        category: int | np.ndarray = CATEGORY) -> bytes:
-    """Data blocks (CAT, LEN, records) with numpy: a new block when the category (per record,
-    or one for all) changes or after ``max_records_per_block`` records of one category."""
-    n = starts.size - 1
-    if n == 0:
-        return b""
-    categories = np.broadcast_to(np.asarray(category, np.int64), (n,))
-    new_run = np.concatenate([[True], categories[1:] != categories[:-1]])
-    run_start = np.maximum.accumulate(np.where(new_run, np.arange(n), 0))
-    first = np.flatnonzero(new_run | ((np.arange(n) - run_start) % max_records_per_block == 0))
-    ends = np.append(first[1:], n)
-    sizes = 3 + starts[ends] - starts[first]
-    if (sizes > 65535).any():
-        raise ValueError("ASTERIX: a data block would exceed 65 535 bytes; lower max_records_per_block")
-    out = np.empty(int(records.size + 3 * first.size), np.uint8)
-    header_at = starts[first] + 3 * np.arange(first.size)
-    out[header_at] = categories[first]
-    out[header_at + 1] = sizes >> 8
-    out[header_at + 2] = sizes & 0xFF
-    block_of_byte = np.searchsorted(starts[first], np.arange(records.size), side="right") - 1
-    out[np.arange(records.size) + 3 * (block_of_byte + 1)] = records
-    return out.tobytes()
 
 
 def encode_cat062(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_SYSTEM_SAC_SIC,
@@ -335,7 +240,7 @@ def encode_cat062(tracks: pd.DataFrame, *, sac_sic: tuple[int, int] = DEFAULT_SY
         raise ValueError("max_records_per_block must be at least 1")
     raw = quantise_tracks(tracks, sac_sic=sac_sic, service_id=service_id, time_of_day_at_epoch_s=time_of_day_at_epoch_s,
                           monosensor=monosensor, begun=begun)
-    return blocks_from_records(*record_bytes(raw), max_records_per_block)
+    return blocks_from_records(*record_bytes(raw), max_records_per_block, CATEGORY)
 
 
 def reference_records(raw: dict[str, np.ndarray]) -> list:

@@ -4,7 +4,8 @@
   (I034/010, 000, 030) assembled with numpy over all records (:func:`plot_record_bytes`,
   :func:`service_record_bytes`), byte for byte the records of the libasterix encoder
   ``skytrack.io.asterix.encode`` (tested);
-- CAT021 ADS-B reports from ``skytrack.io.asterix.cat021.encode_cat021`` (libasterix);
+- CAT021 ADS-B reports assembled with numpy (``skytrack.io.asterix.cat021.cat021_record_bytes``),
+  byte for byte the records of the libasterix encoder ``cat021.encode_cat021`` (tested);
 - one north marker per antenna revolution of every rotating radar: at
   ``scan_phase_s + k * scan_period_s`` within the simulated time span (:func:`north_markers`);
 - all records in time order (CAT034 before CAT048 before CAT021 at equal times), each run of
@@ -24,14 +25,16 @@ import numpy as np
 import pandas as pd
 
 from skytrack.io.asterix import units as u
-from skytrack.io.asterix.cat062 import (
+from skytrack.io.asterix.bytes_assembly import (
     assemble_records,
     big_endian,
     blocks_from_records,
     codes_of_texts,
     distinct_texts,
+    finite_column,
     icao24_code,
     mode3a_code,
+    time_of_day_raw,
 )
 
 DEFAULT_ADSB_STATION = (0, 101)
@@ -90,11 +93,6 @@ def north_markers(sensor_set, start_s: float, end_s: float) -> pd.DataFrame:
     return pd.DataFrame({"time": time, "sensor": pd.Series(names, dtype=object), "message": "north_marker"})
 
 
-def _time_of_day_raw(time_s: np.ndarray, time_of_day_at_epoch_s: float) -> np.ndarray:
-    seconds = np.mod(np.asarray(time_s, float) + time_of_day_at_epoch_s, u.SECONDS_PER_DAY)
-    return np.mod(np.rint(seconds / u.TIME_LSB_S).astype(np.int64), int(u.SECONDS_PER_DAY / u.TIME_LSB_S))
-
-
 def _sac_sic_raw(sensors: np.ndarray, sac_sic: Mapping[str, tuple[int, int]], what: str) -> np.ndarray:
     names, index = np.unique(sensors.astype(str), return_inverse=True)
     missing = sorted(set(names) - set(sac_sic))
@@ -102,14 +100,6 @@ def _sac_sic_raw(sensors: np.ndarray, sac_sic: Mapping[str, tuple[int, int]], wh
         raise ValueError(f"{what}: no SAC/SIC for sensor(s) {', '.join(missing)}")
     pairs = np.array([sac_sic[name][0] * 256 + sac_sic[name][1] for name in names], np.int64)
     return pairs[index] if pairs.size else np.zeros(0, np.int64)
-
-
-def _finite(frame: pd.DataFrame, name: str, what: str) -> np.ndarray:
-    values = frame[name].to_numpy(float)
-    if not np.isfinite(values).all():
-        raise ValueError(f"{what}: row {int(np.flatnonzero(~np.isfinite(values))[0])}, column {name}: "
-                         "a finite number is required")
-    return values
 
 
 def _in_range(raw: np.ndarray, present: np.ndarray, low: int, high: int, column: str) -> None:
@@ -124,10 +114,10 @@ def plot_record_bytes(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]
                       ) -> tuple[np.ndarray, np.ndarray]:
     """CAT048 records of ``plots`` (the items and rules of ``encode.plot_records``) assembled with numpy."""
     n = len(plots)
-    time = _finite(plots, "time", "plots")
-    rho = np.rint(_finite(plots, "range_m", "plots") / u.RHO_LSB_M).astype(np.int64)
+    time = finite_column(plots, "time", "plots")
+    rho = np.rint(finite_column(plots, "range_m", "plots") / u.RHO_LSB_M).astype(np.int64)
     _in_range(rho, np.ones(n, bool), 0, 65535, "range_m")
-    theta = np.mod(np.rint(_finite(plots, "azimuth_deg", "plots") / u.THETA_LSB_DEG).astype(np.int64), 65536)
+    theta = np.mod(np.rint(finite_column(plots, "azimuth_deg", "plots") / u.THETA_LSB_DEG).astype(np.int64), 65536)
     distinct, index = distinct_texts(plots, "mode3a")
     has_3a, code3a = index >= 0, codes_of_texts(distinct, index, mode3a_code, "mode3a", "plots")
     distinct, index = distinct_texts(plots, "mode_s")
@@ -144,7 +134,7 @@ def plot_record_bytes(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]
     always = np.ones(n, bool)
     columns = [
         (0, always, [(always, big_endian(_sac_sic_raw(plots["sensor"].to_numpy(), sac_sic, "plots"), 2))]),
-        (1, always, [(always, big_endian(_time_of_day_raw(time, time_of_day_at_epoch_s), 3))]),
+        (1, always, [(always, big_endian(time_of_day_raw(time, time_of_day_at_epoch_s), 3))]),
         (2, always, [(always, big_endian(typ << 5, 1))]),
         (3, always, [(always, big_endian((rho << 16) | theta, 4))]),
         (4, has_3a, [(always, big_endian(code3a, 2))]),
@@ -161,20 +151,14 @@ def service_record_bytes(service: pd.DataFrame, sac_sic: Mapping[str, tuple[int,
     if (service["message"].astype(str).to_numpy() != "north_marker").any():
         raise ValueError("service messages: only north markers are assembled here (encode.service_records writes "
                          "sector crossings)")
-    time = _finite(service, "time", "service messages")
+    time = finite_column(service, "time", "service messages")
     always = np.ones(n, bool)
     columns = [
         (0, always, [(always, big_endian(_sac_sic_raw(service["sensor"].to_numpy(), sac_sic, "service messages"), 2))]),
         (1, always, [(always, big_endian(np.full(n, u.NORTH_MARKER), 1))]),
-        (2, always, [(always, big_endian(_time_of_day_raw(time, time_of_day_at_epoch_s), 3))]),
+        (2, always, [(always, big_endian(time_of_day_raw(time, time_of_day_at_epoch_s), 3))]),
     ]
     return assemble_records(n, columns)
-
-
-def _libasterix_record_bytes(records: list) -> tuple[np.ndarray, np.ndarray]:
-    chunks = [record.unparse().to_bytes() for record in records]
-    starts = np.concatenate([[0], np.cumsum([len(c) for c in chunks], dtype=np.int64)]).astype(np.int64)
-    return np.frombuffer(b"".join(chunks), np.uint8), starts
 
 
 def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]], *,
@@ -193,15 +177,11 @@ def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]]
                       *plot_record_bytes(plots, sac_sic, time_of_day_at_epoch_s=time_of_day_at_epoch_s)))
     report(0.1)
     if adsb is not None and len(adsb):
-        from skytrack.io.asterix.cat021 import encode_cat021
+        from skytrack.io.asterix.cat021 import cat021_record_bytes
 
-        records = []
-        step = 2000  # libasterix builds CAT021 records one by one: progress every few thousand
-        for start in range(0, len(adsb), step):
-            records.extend(encode_cat021(adsb.iloc[start:start + step], adsb_sac_sic, origin=origin,
-                                         time_of_day_at_epoch_s=time_of_day_at_epoch_s))
-            report(0.1 + 0.85 * min(1.0, (start + step) / len(adsb)))
-        parts.append((adsb["time"].to_numpy(float), 21, 2, *_libasterix_record_bytes(records)))
+        parts.append((adsb["time"].to_numpy(float), 21, 2,
+                      *cat021_record_bytes(adsb, adsb_sac_sic, origin=origin,
+                                           time_of_day_at_epoch_s=time_of_day_at_epoch_s)))
     if not parts:
         return b""
     time = np.concatenate([p[0] for p in parts])
