@@ -95,6 +95,8 @@ def serve(
         run_server(service, http_address, on_started=started)
     except KeyboardInterrupt:
         pass
+    except OSError as error:
+        _fail(str(error))
     finally:
         if feed is not None:
             feed.replayer.stop()

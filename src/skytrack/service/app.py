@@ -138,18 +138,27 @@ class LiveService:
         self.inbox_times.append(now)
 
     async def start(self) -> None:
+        """Open the UDP socket and start the tracking task (a second call does nothing)."""
+        if self._task is not None:
+            return
         loop = asyncio.get_running_loop()
         host, port = self.udp
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        if is_multicast(host):  # several receivers of one group may share the port; a unicast port is ours alone
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         with contextlib.suppress(OSError):
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
-        if is_multicast(host):
-            sock.bind(("", port))
-            membership = struct.pack("4s4s", socket.inet_aton(host), socket.inet_aton("0.0.0.0"))
-            sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
-        else:
-            sock.bind((host, port))
+        try:
+            if is_multicast(host):
+                sock.bind(("", port))
+                membership = struct.pack("4s4s", socket.inet_aton(host), socket.inet_aton("0.0.0.0"))
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
+            else:
+                sock.bind((host, port))
+        except OSError as error:
+            sock.close()
+            what = "join the multicast group" if is_multicast(host) else "listen on"
+            raise OSError(error.errno, f"cannot {what} udp://{host}:{port}: {error.strerror}") from None
         self.udp_bound = sock.getsockname()
         self._transport, _ = await loop.create_datagram_endpoint(lambda: _Receiver(self), sock=sock)
         self._task = asyncio.create_task(self._track_forever())

@@ -11,6 +11,7 @@ HTTP port are open (``skytrack serve --demo`` starts its in-process replay there
 from __future__ import annotations
 
 import asyncio
+import socket
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -93,7 +94,15 @@ def run_server(service, http: tuple[str, int], on_started: Callable[[], None] | 
     server = uvicorn.Server(uvicorn.Config(app, host=http[0], port=http[1], log_level="warning", lifespan="on",
                                            ws="websockets-sansio"))
 
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:  # a clear error before uvicorn's own
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(http)
+        except OSError as error:
+            raise OSError(error.errno, f"cannot serve HTTP on {http[0]}:{http[1]}: {error.strerror}") from None
+
     async def main():
+        await service.start()  # the UDP port: its error comes out here, plainly (the app's lifespan then reuses it)
         serving = asyncio.create_task(server.serve())
         while not server.started:
             if serving.done():
