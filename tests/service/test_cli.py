@@ -52,7 +52,7 @@ def test_replay_a_plots_table(small_scene, tmp_path):
     result = runner.invoke(app, ["replay", str(tmp_path / "plots.parquet"), "--sensors", str(tmp_path / "sensors.json"),
                                  "--to", f"udp://127.0.0.1:{port}", "--speed", "100"])
     assert result.exit_code == 0, result.output
-    assert f"sent {len(head)} records in" in result.output
+    assert f"sent {len(head)} records ({len(head)} plots) in" in result.output
     received = []
     while True:
         try:

@@ -97,3 +97,27 @@ def test_replay_paces_loops_and_logs(small_scene, tmp_path):
     assert np.all(np.diff(log[:, 0]) >= 0)  # times go on across the loop
     with pytest.raises(ValueError, match="give --sensors"):
         load_recording(path)
+
+
+def test_recorded_file_with_service_messages_and_adsb_counts_plots_apart(small_scene, tmp_path):
+    """A simulated recording (``simulate --format asterix``) holds CAT034 and CAT021 records beside the plots."""
+    import pandas as pd
+
+    from skytrack.io.asterix.cat021 import cat021_blocks, encode_cat021
+
+    sensors, plots = small_scene
+    head = plots[plots["time"] < 10.0]
+    service = pd.DataFrame({"time": [0.0, 4.0, 8.0], "sensor": "radar1", "message": "north_marker"})
+    radar = encode_asterix(head, sensor_sac_sic(sensors), service=service)
+    adsb = pd.DataFrame({"time": [1.0, 2.0], "icao24": ["4ca7b5", "3c6a01"], "lat": [48.9, 49.0],
+                         "lon": [2.5, 2.6], "alt_m": [9000.0, 7000.0]})
+    blocks = cat021_blocks(encode_cat021(adsb, (0, 101)))
+    data = radar + (blocks if isinstance(blocks, bytes) else b"".join(blocks))
+    (tmp_path / "feed.ast").write_bytes(data)
+    recording = load_recording(tmp_path / "feed.ast")
+    assert recording.plots == len(head) and recording.records == len(head) + 3 + 2
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    report = Replayer(recording, receiver.getsockname(), speed=1000.0).run()
+    receiver.close()
+    assert (report.plots, report.records) == (len(head), len(head) + 5)

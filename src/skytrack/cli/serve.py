@@ -137,7 +137,8 @@ def replay(
         _fail(str(error))
     if data.records == 0:
         _fail(f"{recording}: no ASTERIX record to send")
-    console.print(f"{recording}: {data.records} records in {len(replayer.bounds) - 1} datagrams over "
+    console.print(f"{recording}: {data.records} records ({data.plots} CAT048 plots) in {len(replayer.bounds) - 1} "
+                  f"datagrams over "
                   f"{data.span_s:.1f} s; sending to udp://{address[0]}:{address[1]} at x{speed:g}"
                   + (f", looping every {replayer.shift_s:g} s of record time" if loop else ""), highlight=False)
     if replayer.oversize:
@@ -151,16 +152,17 @@ def replay(
 
         def progress(report) -> None:
             done = report.records if total is None else min(report.records, total)
-            display.update(task, completed=done, rate=f"{report.records_per_s:,.0f} records/s")
+            display.update(task, completed=done, rate=f"{report.plots_per_s:,.0f} plots/s")
 
         try:
             report = replayer.run(progress, duration_s=duration_s)
         except KeyboardInterrupt:
             replayer.stop()
             return
-    console.print(f"sent {report.records} records in {report.datagrams} datagrams ({report.bytes} bytes, "
+    console.print(f"sent {report.records} records ({report.plots} plots) in {report.datagrams} datagrams "
+                  f"({report.bytes} bytes, "
                   f"{report.passes} pass{'es' if report.passes != 1 else ''}) in {report.elapsed_s:.1f} s: "
-                  f"{report.records_per_s:,.0f} records/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule",
+                  f"{report.plots_per_s:,.0f} plots/s; at most {report.max_behind_s * 1000:.0f} ms behind schedule",
                   soft_wrap=True)
 
 

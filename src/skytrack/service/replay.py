@@ -48,6 +48,8 @@ class Recording:
     block_records: np.ndarray
     time_offsets: np.ndarray
     problems: int = 0
+    block_plots: np.ndarray | None = None
+    """CAT048 records (plots) per block"""
 
     @property
     def span_s(self) -> float:
@@ -56,6 +58,10 @@ class Recording:
     @property
     def records(self) -> int:
         return int(self.block_records.sum())
+
+    @property
+    def plots(self) -> int:
+        return int(self.block_plots.sum()) if self.block_plots is not None else self.records
 
 
 def scan_blocks(data: np.ndarray) -> Recording:
@@ -98,7 +104,8 @@ def scan_blocks(data: np.ndarray) -> Recording:
         first = np.flatnonzero(np.isfinite(block_times))
         block_times[: first[0] if first.size else len(block_times)] = block_times[first[0]] if first.size else 0.0
     return Recording(data, block_starts, block_times, np.bincount(block, minlength=len(block_starts)),
-                     time_at[has_time], int(len(problems["code"])))
+                     time_at[has_time], int(len(problems["code"])),
+                     np.bincount(block[cat == 48], minlength=len(block_starts)))
 
 
 def load_recording(path: str | Path, sensors=None, max_datagram_bytes: int = DEFAULT_DATAGRAM_BYTES) -> Recording:
@@ -164,6 +171,7 @@ def loop_shift(span_s: float, loop_period_s: float) -> float:
 class ReplayReport:
     datagrams: int = 0
     records: int = 0
+    plots: int = 0
     bytes: int = 0
     passes: int = 0
     oversize_datagrams: int = 0
@@ -173,6 +181,10 @@ class ReplayReport:
     @property
     def records_per_s(self) -> float:
         return self.records / self.elapsed_s if self.elapsed_s > 0 else float("nan")
+
+    @property
+    def plots_per_s(self) -> float:
+        return self.plots / self.elapsed_s if self.elapsed_s > 0 else float("nan")
 
 
 class Replayer:
@@ -207,6 +219,8 @@ class Replayer:
         report = ReplayReport(oversize_datagrams=self.oversize)
         datagram_times = recording.block_times[np.maximum(bounds[1:] - 1, 0)]
         datagram_records = np.add.reduceat(recording.block_records, bounds[:-1]) if len(bounds) > 1 else np.zeros(0)
+        block_plots = recording.block_plots if recording.block_plots is not None else recording.block_records
+        datagram_plots = np.add.reduceat(block_plots, bounds[:-1]) if len(bounds) > 1 else np.zeros(0)
         starts = np.append(recording.block_starts, len(recording.data))
         first_time = float(recording.block_times[0]) if len(recording.block_times) else 0.0
         started = time.perf_counter()
@@ -230,6 +244,7 @@ class Replayer:
                     now = time.perf_counter()
                     report.datagrams += 1
                     report.records += int(datagram_records[k])
+                    report.plots += int(datagram_plots[k])
                     report.bytes += len(chunk)
                     if with_log:
                         pending_log.append((float(datagram_times[k]) + shift, wall_started + (now - started)))
