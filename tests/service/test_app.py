@@ -43,6 +43,7 @@ def test_health_metrics_and_websocket_over_loopback_udp(small_scene, tmp_path):
     with TestClient(build_app(service)) as client:
         health = client.get("/health").json()
         assert health["ok"] is True and health["tracks"] == 0 and health["last_datagram_age_s"] is None
+        assert health["last_plot_age_s"] is None
         port = service.udp_bound[1]
         with client.websocket_connect("/ws") as ws:
             hello = json.loads(ws.receive_text())
@@ -81,6 +82,7 @@ def test_health_metrics_and_websocket_over_loopback_udp(small_scene, tmp_path):
         assert health["plots_received"] == len(plots) and health["plots_late"] == 0
         assert health["confirmed_tracks"] >= 10 and len(health["track_ids"]) == health["confirmed_tracks"]
         assert health["last_datagram_age_s"] < 30 and health["checkpoint_age_s"] is not None
+        assert health["last_plot_age_s"] >= health["last_datagram_age_s"] - 0.1
         metrics = client.get("/metrics").text
         values = dict(line.rsplit(" ", 1) for line in metrics.splitlines() if line and not line.startswith("#"))
         assert int(values["skytrack_plots_received_total"]) == len(plots)

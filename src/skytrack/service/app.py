@@ -287,6 +287,8 @@ class LiveService:
             "uptime_s": now - self.started_wall,
             "udp": None if self.udp_bound is None else f"{self.udp_bound[0]}:{self.udp_bound[1]}",
             "last_datagram_age_s": age,
+            "last_plot_age_s": (now - pipeline.newest_received_wall
+                                if pipeline.newest_received_wall == pipeline.newest_received_wall else None),
             "last_plot_s": float(pipeline.last_plot_s) if pipeline.last_plot_s == pipeline.last_plot_s else None,
             "tracks": int(pipeline.tracks_now),
             "confirmed_tracks": pipeline.confirmed_tracks,
