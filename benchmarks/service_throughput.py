@@ -4,7 +4,7 @@
     python benchmarks/service_throughput.py --duration 60    # a quick check
 
 The scene: the demo radar (4 s scan, 250 km) with 1 500 aircraft and 6 000 false plots per scan (about
-1 850 plots/s), 600 s simulated once and cached in ``--work``; ``skytrack replay --loop`` sends it at
+1 850 plots/s), 600 s simulated once and cached in ``--work`` (a folder in the temporary directory); ``skytrack replay --loop`` sends it at
 ``--speed`` x real time (28 by default: about 51 000 plots/s), each pass later by the span rounded up to whole
 scans (the aircraft jump back to their start every pass, about 22 s of wall time: their tracks end and new ones
 start, which the tracker pays for too).  Both commands run as subprocesses; this script is the WebSocket client.
@@ -35,6 +35,7 @@ import socket
 import struct
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import urllib.request
@@ -134,7 +135,8 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=600.0, help="seconds of replay (wall time)")
     parser.add_argument("--speed", type=float, default=28.0, help="replay speed (x real time)")
     parser.add_argument("--warmup", type=float, default=None, help="seconds before memory and latency count")
-    parser.add_argument("--work", type=Path, default=Path("benchmarks/out/service_throughput"))
+    parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "skytrack-service-throughput",
+                        help="folder of the cached scene, the logs and the JSON")
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--max-datagram", type=int, default=1400)
     args = parser.parse_args()
