@@ -4,10 +4,10 @@
     python benchmarks/service_throughput.py --duration 60    # a quick check
 
 The scene: the demo radar (4 s scan, 250 km) with 1 500 aircraft and 6 000 false plots per scan (about
-1 850 plots/s), 600 s simulated once and cached in ``--work`` (a folder in the temporary directory); ``skytrack replay --loop`` sends it at
-``--speed`` x real time (28 by default: about 51 000 plots/s), each pass later by the span rounded up to whole
-scans (the aircraft jump back to their start every pass, about 22 s of wall time: their tracks end and new ones
-start, which the tracker pays for too).  Both commands run as subprocesses; this script is the WebSocket client.
+1 850 plots/s), 600 s simulated once and cached in ``--work`` (a folder in the temporary directory);
+``skytrack replay --loop`` sends it at ``--speed`` x real time (28 by default: about 51 000 plots/s), each
+pass later by the span rounded up to whole scans (the aircraft jump back to their start every pass, about 22 s
+of wall time: their tracks end and new ones start, which the tracker pays for too).  Both commands run as subprocesses; this script is the WebSocket client.
 
 Measured:
 
@@ -250,7 +250,8 @@ def main() -> None:
     lat = result["latency_s"]
     print(f"service_throughput: {result['plots_tracked_per_s']:,.0f} plots/s tracked over {span:.0f} s "
           f"(received {result['plots_received_per_s']:,.0f}/s, late {result['plots_late']}, overload drops "
-          f"{result['datagrams_dropped_overload']}, datagrams {result['datagrams_received']}/{result['datagrams_sent']}); "
+          f"{result['datagrams_dropped_overload']}, "
+          f"datagrams {result['datagrams_received']}/{result['datagrams_sent']}); "
           f"latency p50 {lat['p50']:.3f} s p99 {lat['p99']:.3f} s max {lat['max']:.3f} s over "
           f"{result['frames_measured']} frames; RSS growth {result['rss_mb']['growth']:+.1f} MB "
           f"(after warm-up {result['rss_mb']['after_warmup']:.0f} MB); {result['machine']['cpu']}, "

@@ -72,7 +72,8 @@ def test_kill_9_and_restart_resume_every_confirmed_track(small_scene, tmp_path):
         deadline = time.time() + 20
         while time.time() < deadline:
             health = _health(http_port)
-            if health["plots_tracked"] == int((plots["time"] < 60.0).sum()) and (health["checkpoint_age_s"] or 99.0) < 0.5:
+            fresh = (health["checkpoint_age_s"] or 99.0) < 0.5
+            if health["plots_tracked"] == int((plots["time"] < 60.0).sum()) and fresh:
                 break
             time.sleep(0.1)
         time.sleep(1.5)  # one more checkpoint after everything was tracked

@@ -59,7 +59,8 @@ def encode_plots_cat048(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, in
     for name in ("time", "range_m", "azimuth_deg"):
         finite = np.isfinite(plots[name].to_numpy(float))
         if not finite.all():
-            raise ValueError(f"plots: row {int(np.flatnonzero(~finite)[0])}, column {name}: a finite number is required")
+            row = int(np.flatnonzero(~finite)[0])
+            raise ValueError(f"plots: row {row}, column {name}: a finite number is required")
     order = np.argsort(plots["time"].to_numpy(float), kind="stable")
     plots = plots.iloc[order]
     times = plots["time"].to_numpy(float)

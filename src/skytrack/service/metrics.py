@@ -52,10 +52,11 @@ def prometheus_text(service) -> str:
     metric("skytrack_decode_problems_by_kind_total", "counter", "ASTERIX decoding problems per kind",
            [(f'{{kind="{kind}"}}', count) for kind, count in sorted(pipeline.problems.items())])
     metric("skytrack_plots_late_by_sensor_total", "counter", "late plots per sensor",
-           [(f'{{sensor="{name}"}}', int(n)) for name, n in zip(pipeline.sensors.names, pipeline.reorder.late_per_sensor)])
+           [(f'{{sensor="{name}"}}', int(n))
+            for name, n in zip(pipeline.sensors.names, pipeline.reorder.late_per_sensor)])
     now = time.time()
-    checkpoint_age = now - service.last_checkpoint_wall if service.last_checkpoint_wall == service.last_checkpoint_wall \
-        else float("nan")
+    checkpoint_age = (now - service.last_checkpoint_wall
+                      if service.last_checkpoint_wall == service.last_checkpoint_wall else float("nan"))
     last_age = now - service.last_datagram_wall if service.last_datagram_wall == service.last_datagram_wall \
         else float("nan")
     metric("skytrack_clients", "gauge", "WebSocket clients connected", [("", len(service.clients))])
@@ -68,7 +69,8 @@ def prometheus_text(service) -> str:
            [("", len(service.inbox))])
     metric("skytrack_checkpoint_age_seconds", "gauge", "wall time since the last checkpoint", [("", checkpoint_age)])
     metric("skytrack_last_datagram_age_seconds", "gauge", "wall time since the last datagram", [("", last_age)])
-    metric("skytrack_uptime_seconds", "gauge", "wall time since the service started", [("", now - service.started_wall)])
+    metric("skytrack_uptime_seconds", "gauge", "wall time since the service started",
+           [("", now - service.started_wall)])
     metric("skytrack_plots_per_second", "gauge", "plots received per second (last second)",
            [("", service.plots_per_s)])
     quantiles = pipeline.latency_quantiles()
