@@ -7,7 +7,8 @@ The scene: the demo radar (4 s scan, 250 km) with 1 500 aircraft and 6 000 false
 1 850 plots/s), 600 s simulated once and cached in ``--work`` (a folder in the temporary directory);
 ``skytrack replay --loop`` sends it at ``--speed`` x real time (28 by default: about 51 000 plots/s), each
 pass later by the span rounded up to whole scans (the aircraft jump back to their start every pass, about 22 s
-of wall time: their tracks end and new ones start, which the tracker pays for too).  Both commands run as subprocesses; this script is the WebSocket client.
+of wall time: their tracks end and new ones start, which the tracker pays for too).  Both commands run as
+subprocesses; this script is the WebSocket client.
 
 Measured:
 
