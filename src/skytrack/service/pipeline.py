@@ -73,10 +73,18 @@ class FrameOut:
 class LivePipeline:
     """Datagrams -> plots -> reorder buffer -> tracker -> frames, with the service's counters."""
 
-    def __init__(self, sensors, tracker, window_s: float = 2.0, labeler=None, idle_flush_s: float | None = None):
+    def __init__(self, sensors, tracker, window_s: float = 2.0, labeler=None, idle_flush_s: float | None = None,
+                 feed_adsb: bool = True):
         self.sensors = sensors
         self.tracker = tracker
         self.labeler = labeler
+        #: CAT021 reports of the feed label the tracks (:mod:`skytrack.service.live_adsb`); off when the
+        #: labels come from an ADS-B file
+        self.live_adsb = None
+        if feed_adsb:
+            from skytrack.service.live_adsb import LiveAdsb
+
+            self.live_adsb = LiveAdsb(self)
         if labeler is not None:
             tracker.record_assignments()
         self.reorder = ReorderBuffer(len(sensors.sensors), window_s, idle_flush_s)
@@ -124,9 +132,12 @@ class LivePipeline:
             self.problems[problem.kind] += 1
         self.counters["decode_problems"] += len(decoded.problems.problems)
         self.counters["service_messages"] += len(decoded.service["time"])
-        # CAT021 ADS-B reports are counted, not used: live labelling takes an ADS-B file (serve --adsb)
         adsb = getattr(decoded, "adsb", None) or {}
         self.counters["adsb_reports"] += len(adsb.get("time", ()))
+        if self.live_adsb is not None and len(adsb.get("time", ())):
+            from skytrack.service.live_adsb import adsb_table
+
+            self.live_adsb.add(adsb_table(adsb, self._tracker_time(adsb["time_of_day_s"]), self.sensors.origin))
         plots = decoded.plots
         n = len(plots["time"])
         self.counters["plots_received"] += n

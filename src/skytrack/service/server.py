@@ -16,21 +16,10 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
+from skytrack.service.live_adsb import build_labeler
+
 CHECKPOINT_NAME = "skytrack.checkpoint.npz"
-
-
-def build_labeler(adsb, sensors, config=None):
-    """A :class:`~skytrack.app.identification.TrackLabeler` from ADS-B reports (a path, or a table of
-    :func:`skytrack.io.read_adsb`'s layout)."""
-    from skytrack.app.identification import TrackLabeler
-    from skytrack.app.other_systems import DEFAULT_ADSB_SIGMA_M, adsb_system, covered_area
-    from skytrack.io import read_adsb
-
-    if isinstance(adsb, (str, Path)):
-        adsb = read_adsb(adsb, sensors=sensors, default_sigma_m=DEFAULT_ADSB_SIGMA_M)
-    if len(adsb) == 0:
-        raise ValueError("no ADS-B report to label tracks with")
-    return TrackLabeler(adsb_system(adsb), covered_area(sensors, adsb), config)
+__all__ = ["CHECKPOINT_NAME", "build_labeler", "build_service", "resume_or_start", "run_server"]
 
 
 def resume_or_start(sensors, config, checkpoint_dir: Path | None, labeler, log=print):
@@ -77,7 +66,7 @@ def build_service(sensors_path, udp: tuple[str, int], *, config=None, window_s: 
     labeler = build_labeler(adsb, sensors) if adsb is not None else None
     checkpoint_dir = None if checkpoint_dir is None else Path(checkpoint_dir)
     tracker, labeler, resumed_from = resume_or_start(sensors, config, checkpoint_dir, labeler, log)
-    pipeline = LivePipeline(sensors, tracker, window_s, labeler)
+    pipeline = LivePipeline(sensors, tracker, window_s, labeler, feed_adsb=adsb is None)
     checkpoint_path = None if checkpoint_dir is None else checkpoint_dir / CHECKPOINT_NAME
     return LiveService(pipeline, udp, checkpoint_path=checkpoint_path, checkpoint_every_s=checkpoint_every_s,
                        tick_s=tick_s, resumed_from=resumed_from, log=log)
