@@ -90,3 +90,26 @@ def test_adsb_table_from_decoded_columns(scene_with_adsb):
     assert abs(row["x"]) < 1e-6 and abs(row["y"]) < 1e-6
     assert row["sigma_m"] == pytest.approx(92.6 / 2.4477, rel=1e-3)  # NACp 8: EPU 92.6 m
     assert isinstance(table, pd.DataFrame)
+
+
+def test_a_checkpoint_keeps_the_live_labeller(scene_with_adsb, tmp_path):
+    from skytrack.app.checkpoint import load_checkpoint, save_checkpoint
+
+    sensors, plots, adsb = scene_with_adsb
+    feed = _feed(sensors, plots, adsb)
+    half = len(feed) // 2
+    pipeline = LivePipeline(sensors, Tracker(sensors), window_s=2.0)
+    for k, datagram in enumerate(feed[:half]):
+        pipeline.ingest([datagram], [float(k)], now_wall=float(k))
+        pipeline.step(now_wall=float(k))
+    save_checkpoint(tmp_path / "c.npz", pipeline.tracker, pipeline.labeler)
+    tracker, labeler = load_checkpoint(tmp_path / "c.npz", sensors)
+    assert labeler is not None and len(labeler.other.time) == len(pipeline.labeler.other.time)
+    resumed = LivePipeline(sensors, tracker, window_s=2.0, labeler=labeler)
+    labels = {}
+    for k, datagram in enumerate(feed[half:], start=half):
+        resumed.ingest([datagram], [float(k)], now_wall=float(k))
+        for out in resumed.step(now_wall=float(k)):
+            labels.update(out.changed_labels)
+    assert resumed.counters["adsb_reports_late"] == 0 and resumed.counters["tracker_errors"] == 0
+    assert len({label["callsign"] for label in labels.values() if label["callsign"]}) >= 5
