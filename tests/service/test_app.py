@@ -20,10 +20,10 @@ from skytrack.service.server import build_service
 
 
 def _recording(sensors, plots):
-    from skytrack.service.cat048_bytes import encode_plots_cat048
+    from skytrack.io.asterix.recording import encode_recording
 
-    data, _, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors), max_records_per_block=60,
-                                     time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
+    data = encode_recording(plots, sensor_sac_sic(sensors), max_records_per_block=60,
+                            time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
     return scan_blocks(np.frombuffer(data, np.uint8))
 
 

@@ -15,7 +15,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from skytrack.service.cat048_bytes import encode_plots_cat048
+from skytrack.io.asterix.recording import encode_recording
 from skytrack.service.pipeline import sensor_sac_sic, time_of_day_at_epoch
 from skytrack.service.replay import Replayer, scan_blocks
 from skytrack.service.server import CHECKPOINT_NAME, resume_or_start
@@ -49,8 +49,8 @@ def _start(sensors_path, udp_port, http_port, checkpoint_dir, log_path):
 
 
 def _send(sensors, plots, udp_port, speed=30.0):
-    data, _, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors), max_records_per_block=60,
-                                     time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
+    data = encode_recording(plots, sensor_sac_sic(sensors), max_records_per_block=60,
+                            time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
     return Replayer(scan_blocks(np.frombuffer(data, np.uint8)), ("127.0.0.1", udp_port), speed=speed).run()
 
 

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from skytrack.io.asterix.cat021 import encode_cat021_blocks
-from skytrack.service.cat048_bytes import encode_plots_cat048
+from skytrack.io.asterix.recording import encode_recording
 from skytrack.service.frames import STATUS_IDENTIFIED, decode_frame
 from skytrack.service.live_adsb import adsb_table
 from skytrack.service.pipeline import LivePipeline, sensor_sac_sic, time_of_day_at_epoch
@@ -37,7 +37,7 @@ def _feed(sensors, plots, adsb, seconds_per_datagram=2.0):
         if len(reports):
             out.append(encode_cat021_blocks(reports, (0, 101), time_of_day_at_epoch_s=epoch, origin=sensors.origin))
         if len(radar):
-            out.append(encode_plots_cat048(radar, sensor_sac_sic(sensors), time_of_day_at_epoch_s=epoch)[0])
+            out.append(encode_recording(radar, sensor_sac_sic(sensors), time_of_day_at_epoch_s=epoch))
     return out
 
 

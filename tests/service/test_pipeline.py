@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from skytrack.core.plots import PlotBatch
-from skytrack.service.cat048_bytes import encode_plots_cat048
+from skytrack.io.asterix.recording import encode_recording
 from skytrack.service.frames import STATUS_CONFIRMED, decode_frame
 from skytrack.service.pipeline import LivePipeline, local_velocity, sensor_sac_sic, time_of_day_at_epoch
 from skytrack.service.reorder import ReorderBuffer
+from skytrack.service.replay import scan_blocks
 from skytrack.tracker import Tracker
 
 
@@ -61,8 +62,9 @@ def test_sac_sic_default_and_given(small_scene):
 
 
 def _datagrams(plots, sensors, records_per_block=20) -> list[bytes]:
-    data, starts, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors), max_records_per_block=records_per_block,
-                                          time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
+    data = encode_recording(plots, sensor_sac_sic(sensors), max_records_per_block=records_per_block,
+                            time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc))
+    starts = scan_blocks(np.frombuffer(data, np.uint8)).block_starts
     ends = np.append(starts[1:], len(data))
     return [data[a:b] for a, b in zip(starts, ends)]
 
@@ -126,7 +128,7 @@ def test_unknown_sac_sic_and_damaged_datagrams_are_counted(small_scene):
     sensors, plots = small_scene
     head = plots.iloc[:40]
     good = _datagrams(head, sensors)
-    foreign, _, _ = encode_plots_cat048(head.assign(sensor="other"), {"other": (9, 9)}, max_records_per_block=40)
+    foreign = encode_recording(head.assign(sensor="other"), {"other": (9, 9)}, max_records_per_block=40)
     pipeline = LivePipeline(sensors, Tracker(sensors), window_s=2.0)
     pipeline.ingest([foreign], [0.0], now_wall=0.0)
     assert pipeline.counters["plots_unknown_sensor"] == 40 and dict(pipeline.unknown_sac_sic) == {"9/9": 40}

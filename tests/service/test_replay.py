@@ -1,4 +1,4 @@
-"""skytrack replay (skytrack.service.replay, skytrack.service.cat048_bytes): bytes equal to the libasterix
+"""skytrack replay (skytrack.service.replay, skytrack.io.asterix.recording.encode_recording): bytes equal to the libasterix
 encoder's, datagram sizes, pacing, loops with rewritten times, the send log."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from skytrack.io.asterix import decode_asterix, encode_asterix
-from skytrack.service.cat048_bytes import encode_plots_cat048
+from skytrack.io.asterix.recording import encode_recording
 from skytrack.service.pipeline import sensor_sac_sic
 from skytrack.service.replay import (
     Replayer, datagram_plan, load_recording, loop_shift, read_send_log, scan_blocks, shift_times,
@@ -23,19 +23,19 @@ def test_numpy_encoder_writes_the_libasterix_bytes(small_scene):
     mapping = {"radar1": (12, 34)}
     for per_block in (1, 7, 128):
         expected = encode_asterix(head, mapping, time_of_day_at_epoch_s=43200.0, max_records_per_block=per_block)
-        data, starts, times = encode_plots_cat048(head, mapping, time_of_day_at_epoch_s=43200.0,
-                                                  max_records_per_block=per_block)
+        data = encode_recording(head, mapping, time_of_day_at_epoch_s=43200.0, max_records_per_block=per_block)
         assert data == expected
+        starts = scan_blocks(np.frombuffer(data, np.uint8)).block_starts
         assert len(starts) == -(-300 // per_block) and data[starts[-1]] == 48
     # the plots carry Mode 3/A, Mode C and Mode S on some rows: all three optional items were exercised
     assert head["mode_s"].notna().any() and head["mode3a"].isna().any() and head["mode_c_ft"].notna().any()
     with pytest.raises(ValueError, match="no SAC/SIC for sensor"):
-        encode_plots_cat048(head, {"other": (1, 1)})
+        encode_recording(head, {"other": (1, 1)})
 
 
 def test_blocks_datagrams_and_loop_times(small_scene):
     sensors, plots = small_scene
-    data, _, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors), max_records_per_block=20)
+    data = encode_recording(plots, sensor_sac_sic(sensors), max_records_per_block=20)
     recording = scan_blocks(np.frombuffer(data, np.uint8))
     assert recording.records == len(plots)
     # a block's time is its newest record's: the span runs from the first block's (the 20th plot) to the last plot

@@ -1,7 +1,7 @@
 """``skytrack replay``: send a recording as ASTERIX UDP datagrams paced by its plot times (issue 11 item 3).
 
 :func:`load_recording` reads an ASTERIX file (``.ast``: data blocks as recorded) or a plots table
-(``.parquet``/``.csv``, encoded on the fly with :func:`~skytrack.service.cat048_bytes.encode_plots_cat048`,
+(``.parquet``/``.csv``, encoded on the fly with :func:`~skytrack.io.asterix.recording.encode_recording`,
 blocks small enough for one datagram each).  :func:`datagram_plan` packs whole data blocks into datagrams of at
 most ``max_datagram_bytes`` (1 400 by default, under an Ethernet MTU; a recorded block longer than that goes
 alone and is counted as oversize: up to 65 507 bytes pass on loopback).  :class:`Replayer` sends each
@@ -32,7 +32,7 @@ from skytrack.io.asterix import units as u
 DEFAULT_DATAGRAM_BYTES = 1400
 #: the largest UDP payload over IPv4
 MAX_UDP_PAYLOAD = 65507
-#: bytes of the longest CAT048 record :mod:`skytrack.service.cat048_bytes` writes
+#: bytes of the longest CAT048 record :func:`skytrack.io.asterix.recording.encode_recording` writes
 MAX_RECORD_BYTES = 19
 DAY_RAW = int(u.SECONDS_PER_DAY / u.TIME_LSB_S)
 
@@ -117,14 +117,14 @@ def load_recording(path: str | Path, sensors=None, max_datagram_bytes: int = DEF
     if sensors is None:
         raise ValueError(f"{path}: a plots table is encoded to ASTERIX with the sensors' SAC/SIC: give --sensors")
     from skytrack.io import read_plots
-    from skytrack.service.cat048_bytes import encode_plots_cat048
+    from skytrack.io.asterix.recording import encode_recording
     from skytrack.service.pipeline import sensor_sac_sic, time_of_day_at_epoch
 
     plots = read_plots(path, sensors)
     records_per_block = max(1, (max_datagram_bytes - 3) // MAX_RECORD_BYTES)
-    data, _, _ = encode_plots_cat048(plots, sensor_sac_sic(sensors),
-                                     time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
-                                     max_records_per_block=records_per_block)
+    data = encode_recording(plots, sensor_sac_sic(sensors),
+                            time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
+                            max_records_per_block=records_per_block)
     return scan_blocks(np.frombuffer(data, np.uint8))
 
 

@@ -165,8 +165,10 @@ def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]]
                      service: pd.DataFrame | None = None, adsb: pd.DataFrame | None = None,
                      adsb_sac_sic: tuple[int, int] = DEFAULT_ADSB_STATION, origin=None,
                      time_of_day_at_epoch_s: float = 0.0, max_records_per_block: int = MAX_RECORDS_PER_BLOCK,
+                     ssr_only_sensors: Collection[str] = (),
                      progress: Callable[[float], None] | None = None) -> bytes:
-    """CAT034 north markers, CAT048 plots and CAT021 ADS-B reports as one time-ordered byte string."""
+    """CAT034 north markers, CAT048 plots and CAT021 ADS-B reports as one time-ordered byte string
+    (with plots alone: byte for byte ``encode.encode_asterix``'s output, at about 5 x 10^5 plots/s)."""
     report = progress or (lambda fraction: None)
     parts = []  # (time, category, rank at equal times, record bytes, starts)
     if service is not None and len(service):
@@ -174,7 +176,8 @@ def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]]
                       *service_record_bytes(service, sac_sic, time_of_day_at_epoch_s=time_of_day_at_epoch_s)))
     if len(plots):
         parts.append((plots["time"].to_numpy(float), 48, 1,
-                      *plot_record_bytes(plots, sac_sic, time_of_day_at_epoch_s=time_of_day_at_epoch_s)))
+                      *plot_record_bytes(plots, sac_sic, ssr_only_sensors=ssr_only_sensors,
+                                         time_of_day_at_epoch_s=time_of_day_at_epoch_s)))
     report(0.1)
     if adsb is not None and len(adsb):
         from skytrack.io.asterix.cat021 import cat021_record_bytes
