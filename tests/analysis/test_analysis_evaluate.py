@@ -386,6 +386,22 @@ def test_output_instants_without_tracks_are_filled_in():
     assert ev.series["gospa_missed"].tolist()[3:5] == [1, 1]
 
 
+def test_instants_after_the_truth_ends_are_left_out():
+    # a run whose last plot opens one more scan reports its tracks 4 s past the truth's end: the
+    # truth does not say what flew then, so those rows are not false tracks
+    truth = truth_rows("a", (0, 0, 5000), V, STEPS)
+    tracks = track_rows(1, (0, 0, 5000), V, STEPS, offset=(30.0, 40.0, 0.0))
+    longer = pd.concat([tracks, track_rows(1, (0, 0, 5000), V, [STEPS[-1] + 4.0], offset=(30.0, 40.0, 0.0))])
+    ev, ev_longer = evaluate(tracks, truth), evaluate(longer, truth)
+    assert ev_longer.summary["n_output_times"] == ev.summary["n_output_times"] == STEPS.size
+    assert ev_longer.summary["gospa_mean_m"] == pytest.approx(ev.summary["gospa_mean_m"]) == pytest.approx(50.0)
+    assert ev_longer.summary["n_false_tracks"] == 0
+    assert any("1 output instant(s) after the truth's last time" in note for note in ev_longer.notes)
+    # instants given explicitly are evaluated as given: the extra one has a track and no truth
+    given = evaluate(longer, truth, output_times=np.append(STEPS, STEPS[-1] + 4.0))
+    assert given.summary["n_output_times"] == STEPS.size + 1 and given.series["gospa_false"].tolist()[-1] == 1
+
+
 def test_start_time_extends_the_grid_back_and_times_first_tracks_from_it():
     # the tracker started at 0 s but confirmed its first track at 12 s: without start_time_s
     # the evaluation cannot know about 0 .. 8 s

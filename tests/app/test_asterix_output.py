@@ -88,6 +88,17 @@ def test_tracks_ast_decodes_to_the_parquet_tracks_within_the_cat062_resolutions(
     # identity events beside it stay a table
     assert asterix.identity_events_file == str(tmp_path / "tracks.identity.parquet")
 
+    # read_tracks (and so skytrack evaluate) takes tracks.ast: the same table within the CAT062 resolutions,
+    # the same GOSPA within what those resolutions move it (positions 0.25 m)
+    from skytrack.analysis import evaluate
+    from skytrack.io import read_truth
+
+    read_back = read_tracks(tmp_path / "tracks.ast")
+    assert len(read_back) == len(want) and np.abs(read_back["time"].to_numpy() - want["time"].to_numpy()).max() <= 1 / 256
+    truth = read_truth(crossing["truth"], sensors=sensors)
+    gospa = [evaluate(table, truth, horizontal=True).summary["gospa_mean_m"] for table in (want, read_back)]
+    assert gospa[1] == pytest.approx(gospa[0], abs=0.5)
+
 
 def _simulate(tmp_path, fmt: str, scenario: str = "adsb_identification", duration: str = "60"):
     from typer.testing import CliRunner

@@ -29,8 +29,9 @@ What :func:`evaluate` does, at every output instant ``t_k``:
    its own object (ends included, :func:`metrics.in_intervals`) give the position and
    velocity RMSE in manoeuvres, with the numbers of segments and samples behind them.
 
-The output instants are the track times (a regular grid's empty instants filled in, and
-extended back to ``start_time_s`` when given) or ``output_times``.  Tracks without ``z``
+The output instants are the track times (a regular grid's empty instants filled in,
+extended back to ``start_time_s`` when given, and cut at the truth's last time: after it the
+truth does not say what flew, a note says how many were left out) or ``output_times``.  Tracks without ``z``
 (2-D tracking) are evaluated horizontally: x/y positions and vx/vy
 velocities only.  :attr:`Evaluation.dimension` says which.
 
@@ -108,6 +109,23 @@ def _dimension(tracks: pd.DataFrame, horizontal: bool | None) -> tuple[int, str]
     return 3, "3-D"
 
 
+def _within_truth_span(grid: np.ndarray, tracks: pd.DataFrame, truth: pd.DataFrame, tolerance_s: float,
+                       notes: list[str]) -> tuple[np.ndarray, pd.DataFrame]:
+    """The inferred instants (and track rows) up to the truth's last time: after it the truth does
+    not say what flew, so tracks there are not false (a last plot on a scan boundary makes the
+    tracker report one scan past the end of a simulation)."""
+    truth_times = truth["time"].to_numpy(dtype=float) if "time" in truth.columns and len(truth) else np.empty(0)
+    if truth_times.size == 0 or not np.isfinite(truth_times).any():
+        return grid, tracks
+    end = float(np.nanmax(truth_times)) + tolerance_s
+    after = grid > end
+    if not after.any() or after.all():
+        return grid, tracks
+    notes.append(f"{int(after.sum())} output instant(s) after the truth's last time ({end - tolerance_s:g} s) "
+                 "left out: the truth does not cover them")
+    return grid[~after], tracks[tracks["time"].to_numpy(dtype=float) <= end]
+
+
 def evaluate(
     tracks: pd.DataFrame,
     truth: pd.DataFrame,
@@ -128,8 +146,9 @@ def evaluate(
 
     ``cutoff_m`` and ``order`` are OSPA/GOSPA's ``c`` and ``p``; ``association_gate_m`` is the
     largest track-to-truth distance of an assignment.  ``output_times`` are the instants to
-    evaluate (default: :func:`infer_output_times` of the track times; give them explicitly
-    when the tracker had instants without any track at the start or end of the run).
+    evaluate (default: :func:`infer_output_times` of the track times up to the truth's last
+    time; give them explicitly when the tracker had instants without any track at the start or
+    end of the run).
     ``start_time_s`` is when the tracker started (e.g. the first plot time): truth visible
     before it counts as becoming visible then, and an inferred regular grid is extended back
     to it; default: the first output instant.
@@ -171,6 +190,7 @@ def evaluate(
         grid, source = infer_output_times(tracks["time"].to_numpy(dtype=float), time_tolerance_s, start_time_s)
         if grid.size == 0:
             raise ValueError("tracks table has no confirmed rows: give output_times to evaluate an empty output")
+        grid, tracks = _within_truth_span(grid, tracks, truth, time_tolerance_s, notes)
     else:
         grid = np.unique(np.asarray(output_times, dtype=float))
         source = "given"

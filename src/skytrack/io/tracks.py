@@ -134,10 +134,27 @@ def read_tracks(path, *, lenient=False):
     Absent optional columns stay absent (files written by :func:`write_tracks` have all).
     """
     report = ReadReport(file=str(path))
-    df, source = load_table(path, lenient=lenient, report=report)
+    from skytrack.io.asterix.cat062 import is_asterix_path
+
+    if is_asterix_path(Path(path)):
+        df, source = _cat062_tracks(Path(path)), TableSource.for_frame(f"{path} (CAT062)")
+    else:
+        df, source = load_table(path, lenient=lenient, report=report)
     tracks = _validate_tracks(df, source, lenient, report)
     emit_warnings(report, lenient)
     return (tracks, report) if lenient else tracks
+
+
+def _cat062_tracks(path: Path) -> pd.DataFrame:
+    """CAT062 system tracks written by ``skytrack track -o tracks.ast`` as a tracks table: times count
+    from the epoch of the run's sidecar metadata (from UTC midnight without one); ``z`` stays empty
+    (the file carries no system origin)."""
+    from skytrack.io.asterix.cat062 import time_of_day_at_epoch
+    from skytrack.io.asterix.cat062_read import decode_cat062
+
+    epoch = (read_tracks_metadata(path) or {}).get("epoch_utc")
+    frame = decode_cat062(path.read_bytes(), time_of_day_at_epoch_s=time_of_day_at_epoch(epoch))
+    return frame.drop(columns=["sac", "sic", "service_id", "time_of_day_s", "track_begin"])
 
 
 def _tracks_to_write(df: pd.DataFrame, path: str | Path) -> pd.DataFrame:

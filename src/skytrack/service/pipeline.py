@@ -19,11 +19,11 @@ from __future__ import annotations
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
-from datetime import datetime
 
 import numpy as np
 
 from skytrack.core.plots import FT_TO_M, PlotBatch
+from skytrack.io.asterix.cat062 import time_of_day_at_epoch  # noqa: F401  (also this module's API)
 from skytrack.service.frames import (
     MODE3A_NONE, STATUS_COASTING, STATUS_CONFIRMED, STATUS_IDENTIFIED, encode_frame, mode3a_codes,
 )
@@ -49,14 +49,6 @@ def sensor_sac_sic(sensors) -> dict[str, tuple[int, int]]:
             raise ValueError(f"sensors {seen[key]!r} and {name!r} have the same SAC/SIC {key[0]}/{key[1]}")
         seen[key] = name
     return out
-
-
-def time_of_day_at_epoch(epoch_utc: str | None) -> float:
-    """Seconds after midnight (UTC) of sensors.json's ``epoch_utc`` (0 without an epoch)."""
-    if not epoch_utc:
-        return 0.0
-    moment = datetime.fromisoformat(epoch_utc.replace("Z", "+00:00"))
-    return moment.hour * 3600.0 + moment.minute * 60.0 + moment.second + moment.microsecond * 1e-6
 
 
 @dataclass
