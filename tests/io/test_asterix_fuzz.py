@@ -1,4 +1,4 @@
-"""Fuzz test of the ASTERIX decoder (issue 11 acceptance): 120 000 blocks, 40 % of them damaged.
+"""Fuzz test of the ASTERIX decoder (issue 11 acceptance): 300 000 blocks, 40 % of them damaged (over 100 000 detectably).
 
 One buffer of CAT048, CAT034 and CAT021 blocks (drawn from a pool written by skytrack's
 encoders) is damaged block by block and decoded in one lenient call (the decoder is
@@ -34,7 +34,7 @@ from skytrack.io.asterix import units as u
 from skytrack.io.asterix.cat021 import cat021_blocks, encode_cat021
 from skytrack.io.asterix.framing import scan_records
 
-N_BLOCKS = 120_000
+N_BLOCKS = 300_000
 KNOWN = (21, 34, 48)
 UNKNOWN_CATEGORIES = np.array([c for c in range(256) if c not in KNOWN])
 CLEAN, FLIP_CATEGORY, UNKNOWN_CATEGORY, SHORT_LENGTH, TRUNCATED, GARBAGE, RANDOM_FLIPS = range(7)
@@ -129,7 +129,7 @@ def test_100_000_damaged_blocks_never_raise_and_are_located():
     assert missing.size == 0, f"{missing.size} injected problems not reported, first at byte offset {missing[:5]}"
     # the rest were stepped over by a resynchronisation, which needs two blocks that parse to the byte
     assert np.isin(expected, reported).mean() > 0.7
-    assert expected.size > 0.3 * N_BLOCKS
+    assert expected.size >= 100_000  # the issue asks for 100 000 corrupted blocks that can be reported
     # problems inside undamaged blocks: only where a resynchronisation after a bad length lands wrong
     starts = np.array([s for s, _ in clean_spans])
     ends = np.array([e for _, e in clean_spans])
