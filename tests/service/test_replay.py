@@ -121,3 +121,32 @@ def test_recorded_file_with_service_messages_and_adsb_counts_plots_apart(small_s
     report = Replayer(recording, receiver.getsockname(), speed=1000.0).run()
     receiver.close()
     assert (report.plots, report.records) == (len(head), len(head) + 5)
+
+
+def test_sector_blocks_and_datagrams_hold_at_most_their_span_of_plot_time(small_scene):
+    # a radar sends each sector as it is swept: blocks cut at every 1/8 s, and datagrams that never
+    # wait longer than that for their newest plot (at 1 x, whole 128-record blocks held ~6 s of plots)
+    sensors, plots = small_scene
+    mapping = sensor_sac_sic(sensors)
+    whole = encode_recording(plots, mapping, max_records_per_block=128)
+    cut = encode_recording(plots, mapping, max_records_per_block=128, block_span_s=0.125)
+    for data, span in ((whole, None), (cut, 0.125)):
+        recording = scan_blocks(np.frombuffer(data, np.uint8))
+        decoded = decode_asterix(data).plots
+        block = np.searchsorted(recording.block_starts, np.asarray(decoded["byte_offset"]), side="right") - 1
+        time = np.asarray(decoded["time_of_day_s"])
+        slot_of_block = np.full(block.max() + 1, -1.0)
+        widest = max(np.ptp(time[block == k]) for k in np.unique(block))
+        if span is None:
+            assert widest > 1.0
+        else:  # every block's plots lie in one 1/8 s slot of the time of day
+            slots = np.floor(time / span)
+            np.maximum.at(slot_of_block, block, slots)
+            assert (slots == slot_of_block[block]).all() and widest < span
+        np.testing.assert_array_equal(np.sort(time), np.sort(np.asarray(decode_asterix(whole).plots["time_of_day_s"])))
+    recording = scan_blocks(np.frombuffer(cut, np.uint8))
+    bounds, _ = datagram_plan(recording, 1400, max_span_s=0.25)
+    first, last = recording.block_times[bounds[:-1]], recording.block_times[bounds[1:] - 1]
+    assert (last - first <= 0.25).all() and len(bounds) - 1 > len(datagram_plan(recording, 1400, 1e9)[0]) - 1
+    with pytest.raises(ValueError, match="block_span_s"):
+        encode_recording(plots, mapping, block_span_s=0.0)

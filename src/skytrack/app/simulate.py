@@ -133,7 +133,9 @@ def write_asterix_simulation(result: SimulationResult, out: str | Path, *,
     radars have plots is refused (their plots need the elevation or the carrier's position)."""
     from skytrack.io import write_sensors, write_truth
     from skytrack.io.asterix.cat062 import time_of_day_at_epoch
-    from skytrack.io.asterix.recording import adsb_station, encode_recording, north_markers, with_sac_sic
+    from skytrack.io.asterix.recording import (
+        SECTOR_BLOCK_S, adsb_station, encode_recording, north_markers, with_sac_sic,
+    )
 
     report = progress or (lambda stage, completed, total: None)
     out = Path(out)
@@ -152,7 +154,7 @@ def write_asterix_simulation(result: SimulationResult, out: str | Path, *,
     data = encode_recording(result.plots, sac_sic, service=markers, adsb=result.adsb if has_adsb else None,
                             adsb_sac_sic=adsb_station(sensors), origin=sensors.origin,
                             time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
-                            progress=lambda fraction: report("write", fraction, 1.0))
+                            block_span_s=SECTOR_BLOCK_S, progress=lambda fraction: report("write", fraction, 1.0))
     out.mkdir(parents=True, exist_ok=True)
     (out / "plots.ast").write_bytes(data)
     report("write", 1.0, 1.0)

@@ -29,7 +29,7 @@ def demo_feed(udp: tuple[str, int], *, scenario: str = "demo", seed: int | None 
               speed: float = 1.0) -> DemoFeed:
     """The simulated demo traffic, ready to replay to ``udp`` (see the module docstring)."""
     from skytrack.app.simulate import run_simulation
-    from skytrack.io.asterix.recording import encode_recording
+    from skytrack.io.asterix.recording import SECTOR_BLOCK_S, encode_recording
     from skytrack.service.pipeline import sensor_sac_sic, time_of_day_at_epoch
     from skytrack.service.replay import DEFAULT_DATAGRAM_BYTES, MAX_RECORD_BYTES, Replayer, scan_blocks
 
@@ -38,7 +38,8 @@ def demo_feed(udp: tuple[str, int], *, scenario: str = "demo", seed: int | None 
     plots = result.plots[result.plots["sensor"].isin([s.name for s in sensors.sensors if s.is_radar])]
     data = encode_recording(plots, sensor_sac_sic(sensors),
                             time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
-                            max_records_per_block=(DEFAULT_DATAGRAM_BYTES - 3) // MAX_RECORD_BYTES)
+                            max_records_per_block=(DEFAULT_DATAGRAM_BYTES - 3) // MAX_RECORD_BYTES,
+                            block_span_s=SECTOR_BLOCK_S)
     recording = scan_blocks(np.frombuffer(data, np.uint8))
     replayer = Replayer(recording, udp, speed=speed)
     adsb = result.adsb if result.adsb is not None and len(result.adsb) else None

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from skytrack.io.asterix import units as u
+from skytrack.io.asterix.recording import SECTOR_BLOCK_S
 
 DEFAULT_DATAGRAM_BYTES = 1400
 #: the largest UDP payload over IPv4
@@ -124,25 +125,30 @@ def load_recording(path: str | Path, sensors=None, max_datagram_bytes: int = DEF
     records_per_block = max(1, (max_datagram_bytes - 3) // MAX_RECORD_BYTES)
     data = encode_recording(plots, sensor_sac_sic(sensors),
                             time_of_day_at_epoch_s=time_of_day_at_epoch(sensors.epoch_utc),
-                            max_records_per_block=records_per_block)
+                            max_records_per_block=records_per_block, block_span_s=SECTOR_BLOCK_S)
     return scan_blocks(np.frombuffer(data, np.uint8))
 
 
-def datagram_plan(recording: Recording, max_datagram_bytes: int = DEFAULT_DATAGRAM_BYTES
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def datagram_plan(recording: Recording, max_datagram_bytes: int = DEFAULT_DATAGRAM_BYTES,
+                  max_span_s: float = SECTOR_BLOCK_S) -> tuple[np.ndarray, np.ndarray]:
     """``(bounds, oversize)``: datagram k holds blocks ``bounds[k]:bounds[k+1]`` (whole blocks, at most
-    ``max_datagram_bytes`` unless one block alone is longer: ``oversize`` counts those datagrams)."""
+    ``max_datagram_bytes`` unless one block alone is longer: ``oversize`` counts those datagrams), none
+    more than ``max_span_s`` of plot time after the datagram's first (a datagram waits for its newest
+    plot, so this bounds what pacing adds to the latency of its oldest)."""
     if not 1 <= max_datagram_bytes <= MAX_UDP_PAYLOAD:
         raise ValueError(f"the datagram size must be in 1..{MAX_UDP_PAYLOAD} bytes, got {max_datagram_bytes}")
     ends = np.append(recording.block_starts[1:], len(recording.data))
     lengths = (ends - recording.block_starts).tolist()
     if any(length > MAX_UDP_PAYLOAD for length in lengths):
         raise ValueError(f"an ASTERIX block of {max(lengths)} bytes does not fit one UDP datagram")
-    bounds, size, oversize = [0], 0, 0
+    bounds, size, oversize, first_time = [0], 0, 0, 0.0
+    times = recording.block_times.tolist()
     for k, length in enumerate(lengths):
-        if size and size + length > max_datagram_bytes:
+        if size and (size + length > max_datagram_bytes or times[k] - first_time > max_span_s):
             bounds.append(k)
             size = 0
+        if size == 0:
+            first_time = times[k]
         size += length
         if size > max_datagram_bytes:
             oversize += 1

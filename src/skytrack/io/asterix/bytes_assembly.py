@@ -126,14 +126,17 @@ def assemble_records(n: int, columns: list[tuple[int, np.ndarray, list[tuple[np.
 
 
 def blocks_from_records(records: np.ndarray, starts: np.ndarray, max_records_per_block: int,
-                        category: int | np.ndarray) -> bytes:
+                        category: int | np.ndarray, new_block: np.ndarray | None = None) -> bytes:
     """Data blocks (CAT, LEN, records) with numpy: a new block when the category (per record,
-    or one for all) changes or after ``max_records_per_block`` records of one category."""
+    or one for all) changes, where ``new_block`` (per record) says so, or after
+    ``max_records_per_block`` records of one run."""
     n = starts.size - 1
     if n == 0:
         return b""
     categories = np.broadcast_to(np.asarray(category, np.int64), (n,))
     new_run = np.concatenate([[True], categories[1:] != categories[:-1]])
+    if new_block is not None:
+        new_run |= np.asarray(new_block, bool)
     run_start = np.maximum.accumulate(np.where(new_run, np.arange(n), 0))
     first = np.flatnonzero(new_run | ((np.arange(n) - run_start) % max_records_per_block == 0))
     ends = np.append(first[1:], n)

@@ -39,6 +39,8 @@ from skytrack.io.asterix.bytes_assembly import (
 
 DEFAULT_ADSB_STATION = (0, 101)
 MAX_RECORDS_PER_BLOCK = 128
+#: plot-time span of a data block when blocks are cut like a radar's sectors (1/32 of a 4 s scan)
+SECTOR_BLOCK_S = 0.125
 
 
 def _sensor_pair(sensor) -> tuple[int, int] | None:
@@ -165,10 +167,16 @@ def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]]
                      service: pd.DataFrame | None = None, adsb: pd.DataFrame | None = None,
                      adsb_sac_sic: tuple[int, int] = DEFAULT_ADSB_STATION, origin=None,
                      time_of_day_at_epoch_s: float = 0.0, max_records_per_block: int = MAX_RECORDS_PER_BLOCK,
-                     ssr_only_sensors: Collection[str] = (),
+                     ssr_only_sensors: Collection[str] = (), block_span_s: float | None = None,
                      progress: Callable[[float], None] | None = None) -> bytes:
     """CAT034 north markers, CAT048 plots and CAT021 ADS-B reports as one time-ordered byte string
-    (with plots alone: byte for byte ``encode.encode_asterix``'s output, at about 5 x 10^5 plots/s)."""
+    (with plots alone: byte for byte ``encode.encode_asterix``'s output, at about 5 x 10^5 plots/s).
+
+    With ``block_span_s`` a new data block also starts at every multiple of that many seconds, as
+    a radar sends each sector's plots as soon as the sector is swept: a block then never holds
+    plots further apart than that, which bounds the delay a replay's whole-block datagrams add."""
+    if block_span_s is not None and not block_span_s > 0:
+        raise ValueError(f"block_span_s must be positive, got {block_span_s}")
     report = progress or (lambda fraction: None)
     parts = []  # (time, category, rank at equal times, record bytes, starts)
     if service is not None and len(service):
@@ -198,6 +206,10 @@ def encode_recording(plots: pd.DataFrame, sac_sic: Mapping[str, tuple[int, int]]
     sorted_lengths = lengths[order]
     sorted_starts = np.concatenate([[0], np.cumsum(sorted_lengths)]).astype(np.int64)
     source = np.repeat(starts[order] - sorted_starts[:-1], sorted_lengths) + np.arange(sorted_starts[-1])
-    data = blocks_from_records(buffer[source], sorted_starts, max_records_per_block, category[order])
+    new_block = None
+    if block_span_s is not None:
+        slot = np.floor(np.rint(time[order] / u.TIME_LSB_S) * u.TIME_LSB_S / block_span_s)  # on the times written
+        new_block = np.concatenate([[True], slot[1:] != slot[:-1]])
+    data = blocks_from_records(buffer[source], sorted_starts, max_records_per_block, category[order], new_block)
     report(1.0)
     return data
