@@ -278,3 +278,28 @@ def test_empty_plots_table_gives_empty_tracks(sim, radar1, targets):
     tracks = tracker.run(plots)
     assert len(tracks) == 0 and list(tracks.columns) == FORMATS_TRACK_COLUMNS
     assert tracker.stats["plots"] == 0
+
+
+def test_advance_to_releases_the_windows_a_silent_radar_held(sim, radar1, radar2, targets):
+    """radar2 falls silent at 60 s: the tracker waits for it (its plots might still come) and
+    reports nothing after; ``advance_to`` (a live feed's reorder buffer vouching that nothing older
+    will come) lets the windows go: radar1 keeps the same tracks going, and radar2's empty windows
+    count as scans without a plot (coasting)."""
+    rng = np.random.default_rng(3)
+    plots = sim.merge_plots([sim.radar_plots(r, targets, 0.0, 120.0, rng) for r in (radar1, radar2)])
+    plots = plots[(plots["sensor"] == "radar1") | (plots["time"] < 60.0)].reset_index(drop=True)
+    sensors = sim.sensor_set([radar1, radar2])
+    waiting = Tracker(sensors)
+    waiting.feed(plots)
+    held = waiting.drain()
+    assert held["time"].max() < 64.0
+    advanced = Tracker(sensors)
+    advanced.feed(plots)
+    advanced.advance_to(float(plots["time"].max()))
+    released = advanced.drain()
+    assert released["time"].max() > 112.0
+    before = released[released["time"] <= held["time"].max()].reset_index(drop=True)
+    pd.testing.assert_frame_equal(before, held.reset_index(drop=True))
+    last = released[released["time"] == released["time"].max()]
+    assert set(last["track_id"]) == set(held["track_id"]) and len(last) == 2
+    assert (released.loc[released["time"] > 64.0, "status"] == "coasting").any()

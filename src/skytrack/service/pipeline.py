@@ -178,11 +178,7 @@ class LivePipeline:
         if len(plots) == 0:
             return []
         tracker = self.tracker
-        schedule = tracker.schedule
-        # the reorder buffer vouches that no plot before its release time will come: a radar that went
-        # silent must not hold back the windows of the others (the tracker waits for every seen sensor)
-        seen = schedule.seen
-        schedule.last_time[seen] = np.maximum(schedule.last_time[seen], float(plots.time.min()))
+        tracker.advance_to(float(plots.time.min()))  # the reorder buffer released everything older
         plots.row = self.rows_fed + np.arange(len(plots), dtype=np.int64)
         self.rows_fed += len(plots)
         try:

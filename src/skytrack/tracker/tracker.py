@@ -138,6 +138,14 @@ class Tracker:
         self.stats["plots"] += len(chunk)
         self._process_pending(final=False)
 
+    def advance_to(self, time_s: float) -> None:
+        """Declare that no plot older than ``time_s`` will come from any sensor seen so far (a live
+        feed's reorder buffer vouches for it): the windows of the other sensors then need not wait
+        for a radar that went silent."""
+        seen = self.schedule.seen
+        self.schedule.last_time[seen] = np.maximum(self.schedule.last_time[seen], float(time_s))
+        self._process_pending(final=False)
+
     def finish(self) -> None:
         """Process the remaining plots and emit the last output instants."""
         self._process_pending(final=True)
