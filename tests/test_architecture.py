@@ -319,6 +319,16 @@ def test_source_file_is_at_most_600_lines(path):
     assert lines <= MAX_LINES, f"{path.relative_to(SRC).as_posix()} has {lines} lines (at most {MAX_LINES})"
 
 
+def test_test_modules_have_unique_basenames():
+    # the test folders are not packages: pytest imports each test module by its basename, so two
+    # files of one name in two folders stop the whole suite at collection ("import file mismatch")
+    seen: dict[str, list[str]] = {}
+    for path in sorted((ROOT / "tests").rglob("test_*.py")):
+        seen.setdefault(path.name, []).append(path.relative_to(ROOT).as_posix())
+    clashes = {name: paths for name, paths in seen.items() if len(paths) > 1}
+    assert not clashes, f"test modules sharing a basename: {clashes}"
+
+
 # --------------------------------------------------------------------------- the checker itself
 
 

@@ -24,8 +24,14 @@ import zipfile
 import numpy as np
 import pandas as pd
 import pytest
+from chunked_feed import CHUNK_ROWS, chunks_of
 
-from skytrack.app.checkpoint import CheckpointError, load_checkpoint, read_checkpoint, save_checkpoint
+from skytrack.app.checkpoint import (
+    CheckpointError,
+    load_checkpoint,
+    read_checkpoint,
+    save_checkpoint,
+)
 from skytrack.app.identification import TrackLabeler
 from skytrack.app.other_systems import adsb_system, covered_area
 from skytrack.io.sensors import sensor_set_from_dict
@@ -34,16 +40,10 @@ from skytrack.tracker.bank import CONFIRMED
 from skytrack.tracker.config import FilterConfig, TrackerConfig
 from skytrack.tracker.tracker import Tracker
 
-CHUNK_ROWS = 700
-
 
 @pytest.fixture(scope="module")
 def demo():
     return simulate(load_scenario("demo"))
-
-
-def chunks_of(plots: pd.DataFrame) -> list[pd.DataFrame]:
-    return [plots.iloc[start:start + CHUNK_ROWS] for start in range(0, len(plots), CHUNK_ROWS)]
 
 
 def imm_config() -> TrackerConfig:

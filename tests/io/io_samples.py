@@ -119,3 +119,13 @@ def make_tracks(n: int = 6) -> pd.DataFrame:
             "cov_0_1": rng.normal(0, 10, n),
         }
     )
+
+
+def split_blocks(data: bytes) -> list[bytes]:
+    """ASTERIX bytes cut into their data blocks (by each block's LEN)."""
+    blocks, p = [], 0
+    while p < len(data):
+        n = int.from_bytes(data[p + 1:p + 3], "big")
+        blocks.append(data[p:p + n])
+        p += n
+    return blocks

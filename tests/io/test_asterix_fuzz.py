@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 import pandas as pd
+from io_samples import split_blocks
 
 from skytrack.io.asterix import decode_asterix, encode_asterix
 from skytrack.io.asterix import units as u
@@ -38,15 +39,6 @@ N_BLOCKS = 300_000
 KNOWN = (21, 34, 48)
 UNKNOWN_CATEGORIES = np.array([c for c in range(256) if c not in KNOWN])
 CLEAN, FLIP_CATEGORY, UNKNOWN_CATEGORY, SHORT_LENGTH, TRUNCATED, GARBAGE, RANDOM_FLIPS = range(7)
-
-
-def split_blocks(data: bytes) -> list[bytes]:
-    blocks, p = [], 0
-    while p < len(data):
-        n = int.from_bytes(data[p + 1:p + 3], "big")
-        blocks.append(data[p:p + n])
-        p += n
-    return blocks
 
 
 def block_pool(seed: int) -> list[bytes]:

@@ -23,11 +23,20 @@ import asterix.generated as gen
 import numpy as np
 import pandas as pd
 import pytest
+from io_samples import split_blocks
 
 from skytrack.analysis import evaluate
 from skytrack.app.run import run_tracking
 from skytrack.app.simulate import run_simulation
-from skytrack.io import InputError, ReadReport, read_plots, read_tracks, write_adsb, write_plots, write_sensors
+from skytrack.io import (
+    InputError,
+    ReadReport,
+    read_plots,
+    read_tracks,
+    write_adsb,
+    write_plots,
+    write_sensors,
+)
 from skytrack.io.adsb import nacp_sigma_m, read_adsb
 from skytrack.io.asterix import encode_asterix
 from skytrack.io.asterix import units as u
@@ -91,15 +100,6 @@ def libasterix_recording(plots: pd.DataFrame, markers: pd.DataFrame, sac_sic: di
             k += 1
         out.append(spec.create(run).unparse().to_bytes())
     return b"".join(out)
-
-
-def split_blocks(data: bytes) -> list[bytes]:
-    blocks, p = [], 0
-    while p < len(data):
-        n = int.from_bytes(data[p + 1:p + 3], "big")
-        blocks.append(data[p:p + n])
-        p += n
-    return blocks
 
 
 @pytest.fixture(scope="module")

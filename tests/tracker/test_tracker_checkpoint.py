@@ -14,22 +14,17 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from chunked_feed import chunks_of
 
 from skytrack.sim import load_scenario, simulate
 from skytrack.tracker.bank import CONFIRMED
 from skytrack.tracker.config import FilterConfig, TrackerConfig
 from skytrack.tracker.tracker import Tracker
 
-CHUNK_ROWS = 700
-
 
 @pytest.fixture(scope="module")
 def demo():
     return simulate(load_scenario("demo"))
-
-
-def chunks_of(plots: pd.DataFrame) -> list[pd.DataFrame]:
-    return [plots.iloc[start:start + CHUNK_ROWS] for start in range(0, len(plots), CHUNK_ROWS)]
 
 
 def config_of(kind: str, model: str = "cv") -> TrackerConfig:
