@@ -24,7 +24,7 @@ import zipfile
 import numpy as np
 import pandas as pd
 import pytest
-from chunked_feed import CHUNK_ROWS, chunks_of
+from checkpoint_support import CHUNK_ROWS, assert_same_tracks, chunks_of
 
 from skytrack.app.checkpoint import (
     CheckpointError,
@@ -52,20 +52,6 @@ def imm_config() -> TrackerConfig:
     return config
 
 
-def assert_same_tables(expected: pd.DataFrame, actual: pd.DataFrame) -> None:
-    """Same rows, track ids and text columns; numbers equal to 1e-9 relative."""
-    assert len(expected) > 0 and len(actual) == len(expected)
-    assert list(actual.columns) == list(expected.columns)
-    np.testing.assert_array_equal(actual["track_id"].to_numpy(), expected["track_id"].to_numpy())
-    for column in expected.columns:
-        if expected[column].dtype.kind == "f":
-            np.testing.assert_allclose(actual[column].to_numpy(), expected[column].to_numpy(), rtol=1e-9, atol=0,
-                                       err_msg=column)
-        else:
-            assert actual[column].astype(object).fillna("<na>").tolist() == \
-                expected[column].astype(object).fillna("<na>").tolist(), column
-
-
 @pytest.mark.parametrize("config", [TrackerConfig(), imm_config()], ids=["default", "imm"])
 def test_tracker_loaded_from_disk_continues_exactly(demo, tmp_path, config):
     chunks = chunks_of(demo.plots)
@@ -86,7 +72,7 @@ def test_tracker_loaded_from_disk_continues_exactly(demo, tmp_path, config):
     original.finish()
     restored.finish()
     expected, actual = original.drain(), restored.drain()
-    assert_same_tables(expected, actual)
+    assert_same_tracks(expected, actual)
     assert confirmed <= set(actual["track_id"].tolist())
     header, _ = read_checkpoint(path)
     assert header["confirmed_tracks"] == len(confirmed) and header["sensor_names"] == ["radar1"]
@@ -129,7 +115,7 @@ def test_adsb_labelling_is_restored_with_its_pairs(demo, tmp_path):
     expected = pd.concat([t.to_pandas() for t in expected if t is not None], ignore_index=True)
     actual = pd.concat([t.to_pandas() for t in actual if t is not None], ignore_index=True)
     assert expected["callsign"].notna().sum() > 1000
-    assert_same_tables(expected, actual)
+    assert_same_tracks(expected, actual)
     assert restored_labeler.stats.to_dict() == labeler.stats.to_dict()
 
 
@@ -304,7 +290,7 @@ def test_killed_tracker_resumes_from_its_last_checkpoint(demo, tmp_path):
         uninterrupted.feed(chunk)
     uninterrupted.finish()
     expected = uninterrupted.drain()
-    assert_same_tables(expected.reset_index(drop=True), resumed.reset_index(drop=True))
+    assert_same_tracks(expected.reset_index(drop=True), resumed.reset_index(drop=True))
     # confirmed tracks still reported (fewer than report_max_misses misses) appear at the first output instant
     columns = arrays["tracker.bank.column.n_misses"]
     reported = set(arrays["tracker.bank.column.track_id"][(arrays["tracker.bank.column.status"] == CONFIRMED)
